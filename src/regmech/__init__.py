@@ -1,0 +1,30 @@
+"""regmech: dynamics of drivetrains and other regular mechanical systems.
+
+>>> import regmech as rm
+>>> from regmech.components import Fixed, Inertia, Spring, Torque
+>>> m = rm.Model("two_inertias")
+"""
+
+from . import signals
+from .component import Body, Component, Device, Ground, Param
+from .errors import (ChatteringError, ModelError, ParameterError, RegmechError, RegularityError,
+                     RegularityWarning, SimulationError, StructureError, UnknownFlangeError)
+from .model import Model
+from .result import Event, Result, Stats
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Model", "Result", "Event", "Stats", "signals",
+    "Component", "Body", "Ground", "Device", "Param",
+    "RegmechError", "ParameterError", "ModelError", "UnknownFlangeError", "RegularityError",
+    "StructureError", "SimulationError", "ChatteringError", "RegularityWarning",
+]
+
+
+def __getattr__(name):
+    # heavier sub-packages load on first use
+    if name in ("analysis", "components", "solvers", "structure", "compile", "bench", "library"):
+        import importlib
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module 'regmech' has no attribute {name!r}")

@@ -1,0 +1,465 @@
+"""The compiled system: an index-1 DAE ``F(t, y, y') = 0`` for IDA, its
+sparse Jacobian, consistent initial values, the ODE form for explicit
+solvers, and every named output.
+
+Unknowns ``y = [x, v, a_d, lam, z]`` (interleaved x_k, v_k per coordinate):
+positions and velocities of all coordinates, the accelerations of the dummy
+coordinates ``D_v`` (for the others ``a_k = v_k'``), the constraint forces
+``lam`` (rigid rows, Position, Speed, friction) and device internal states.
+
+Residual rows (``M`` diagonal masses, ``S`` compliant rows, ``G`` constraints):
+
+    x_k' - v_k                          k not in D_x   (differential)
+    G_p x + e0_p - g_p(t)                              (position constraints)
+    G_p v - g_p'(t);  G_v v - g_v(t)                   (their derivatives / speed rows)
+    M a + S^T tau(e, e', z, t) + G^T lam               (motion, n rows)
+    G_p a - g_p''(t); G_v a - g_v'(t)                  (acceleration level)
+    friction rows by mode (see ``components.friction``)
+    z' - h(e, e', z, t)                                (device states)
+
+with ``e = S x + e0``. This is the dummy-derivative form: the position
+constraints appear at all three levels and D_x/D_v make it square.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import RegularityWarning, SimulationError, StructureError
+from ..structure.system import MechanicalStructure, build_structure
+from .assembly import PatternBuilder
+from .kernels import KernelGroup, template_for
+
+
+class CompiledSystem:
+    def __init__(self, st: MechanicalStructure):
+        self.structure = st
+        self.model = st.model
+        n = st.n
+        self.n = n
+        self.mass = st.mass
+        self.Sc = st.matrix(st.compliant).tocsr()
+        self.ScT = self.Sc.T.tocsr()
+        self.e0c = st.offsets(st.compliant)
+        self.Gp = st.matrix(st.position).tocsr()
+        self.e0p = st.offsets(st.position)
+        self.Gv = st.matrix(st.speed).tocsr()
+        self.Gpv = sp.vstack([self.Gp, self.Gv]).tocsr()
+        self.Gf = st.matrix(st.friction).tocsr()
+        self.Gall = sp.vstack([self.Gp, self.Gv, self.Gf]).tocsr()
+        self.GallT = self.Gall.T.tocsr()
+        self.mp, self.mv, self.mf = self.Gp.shape[0], self.Gv.shape[0], self.Gf.shape[0]
+        self.m = self.mp + self.mv + self.mf
+        self.Dx, self.Dv = st.dummy_x, st.dummy_v
+        self.Kx = np.setdiff1d(np.arange(n), self.Dx)      # coordinates with differential x
+        self.Kv = np.setdiff1d(np.arange(n), self.Dv)      # coordinates with differential v
+        self._t_right = np.inf
+        self._build_kernels()
+        self._build_layout()
+        self._build_references()
+        self._build_jacobian()
+        self._kkt_cache: dict = {}
+        self.friction = None
+        if st.friction:
+            from ..components.friction import FrictionSet   # components sit above compile in the layers
+            self.friction = FrictionSet(self, st.friction)
+        self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
+
+    # ------------------------------------------------------------------ build
+    def _build_kernels(self):
+        st = self.structure
+        row_of = {id(r): i for i, r in enumerate(st.compliant)}
+        by_tpl: dict = {}
+        for dev in st.devices:
+            if dev.device_kind() != "compliant":
+                continue
+            tpl = template_for(dev)
+            by_tpl.setdefault(id(tpl), (tpl, []))[1].append(dev)
+        self.groups: list[KernelGroup] = []
+        nz = 0
+        self.state_names: list[str] = []
+        self.state_start: list[float] = []
+        for tpl, devs in by_tpl.values():
+            rows = np.array([[row_of[id(r)] for r in st.rows[d.name]] for d in devs], dtype=int).reshape(len(devs), tpl.k)
+            ns = len(tpl.states)
+            sidx = (nz + np.arange(len(devs) * ns)).reshape(len(devs), ns) if ns else np.zeros((len(devs), 0), int)
+            for d in devs:
+                for s, start_param in type(d).states.items():
+                    self.state_names.append(f"{d.name}.{s}")
+                    val = d._values.get(start_param) if start_param else None
+                    self.state_start.append(0.0 if val is None else float(val))
+            nz += len(devs) * ns
+            self.groups.append(KernelGroup(tpl, devs, rows, sidx))
+        self.nz = nz
+        self.state_start = np.array(self.state_start, float)
+
+    def _build_layout(self):
+        n, nd, m, nz = self.n, len(self.Dv), self.m, self.nz
+        self.ix = 2 * np.arange(n)
+        self.iv = 2 * np.arange(n) + 1
+        self.iad = 2 * n + np.arange(nd)
+        self.ilam = 2 * n + nd + np.arange(m)
+        self.iz = 2 * n + nd + m + np.arange(nz)
+        self.N = 2 * n + nd + m + nz
+        # residual slots
+        self.r_kin = self.ix[self.Kx]
+        self.r_pos = self.ix[self.Dx]          # mp rows (len(Dx) == mp)
+        self.r_vel = self.iad                  # mp + mv rows (len(Dv))
+        self.r_mot = self.iv
+        self.r_acc = self.ilam[: self.mp + self.mv]
+        self.r_fric = self.ilam[self.mp + self.mv:]
+        self.r_z = self.iz
+        alg = np.concatenate([self.ix[self.Dx], self.iv[self.Dv], self.iad, self.ilam])
+        self.algebraic = np.sort(alg).astype(int)
+        self.is_dummy_v = np.zeros(n, bool)
+        self.is_dummy_v[self.Dv] = True
+        self.pos_in_Dv = np.full(n, -1)
+        self.pos_in_Dv[self.Dv] = np.arange(len(self.Dv))
+
+    def _build_references(self):
+        st = self.structure
+        self._pos_sig = [(j, r.device._values[r.device.ref_param]) for j, r in enumerate(st.position)
+                         if r.device.device_kind() == "position"]
+        self._spd_sig = [(j, r.device._values[r.device.ref_param]) for j, r in enumerate(st.speed)]
+
+    def _refs(self, t):
+        """g_p, g_p', g_p'' (mp) and g_v, g_v' (mv) at t."""
+        left = t >= self._t_right
+        gp = np.zeros((3, self.mp))
+        for j, s in self._pos_sig:
+            gp[0, j] = s.value(t, left)
+            gp[1, j] = s.derivative(t, 1, left)
+            gp[2, j] = s.derivative(t, 2, left)
+        gv = np.zeros((2, self.mv))
+        for j, s in self._spd_sig:
+            gv[0, j] = s.value(t, left)
+            gv[1, j] = s.derivative(t, 1, left)
+        return gp, gv
+
+    def _build_jacobian(self):
+        n = self.n
+        pb = PatternBuilder(self.N)
+        # kinematics
+        pb.cj(self.r_kin, self.ix[self.Kx], np.ones(len(self.Kx)))
+        pb.const(self.r_kin, self.iv[self.Kx], -np.ones(len(self.Kx)))
+        # position rows on x
+        Gp = self.Gp.tocoo()
+        pb.const(self.r_pos[Gp.row], self.ix[Gp.col], Gp.data)
+        # velocity rows on v
+        Gpv = self.Gpv.tocoo()
+        pb.const(self.r_vel[Gpv.row], self.iv[Gpv.col], Gpv.data)
+        # motion: M a
+        pb.cj(self.r_mot[self.Kv], self.iv[self.Kv], self.mass[self.Kv])
+        pb.const(self.r_mot[self.Dv], self.iad, self.mass[self.Dv])
+        # motion: G^T lam
+        GT = self.Gall.tocoo()
+        pb.const(self.r_mot[GT.col], self.ilam[GT.row], GT.data)
+        # acceleration rows: G_pv a
+        dmask = self.is_dummy_v[Gpv.col]
+        pb.cj(self.r_acc[Gpv.row[~dmask]], self.iv[Gpv.col[~dmask]], Gpv.data[~dmask])
+        pb.const(self.r_acc[Gpv.row[dmask]], self.iad[self.pos_in_Dv[Gpv.col[dmask]]], Gpv.data[dmask])
+        # device states
+        pb.cj(self.r_z, self.iz, np.ones(self.nz))
+        # kernel Jacobians: weights layout
+        Sc = self.Sc.tocsr()
+        woff = 0
+        self._wslices = []
+        for g in self.groups:
+            tpl = g.tpl
+            njac = len(tpl.jac_entries)
+            self._wslices.append((woff, njac))
+            for q, ((oname, oi), (wname, wj)) in enumerate(tpl.jac_entries):
+                widx_base = woff + q * g.n
+                for inst in range(g.n):
+                    widx = widx_base + inst
+                    # column block
+                    if wname in ("e", "de"):
+                        crow = g.row_index[inst, wj]
+                        lo, hi = Sc.indptr[crow], Sc.indptr[crow + 1]
+                        ccols, ccoef = Sc.indices[lo:hi], Sc.data[lo:hi]
+                        yc = (self.ix if wname == "e" else self.iv)[ccols]
+                    else:
+                        yc, ccoef = np.array([self.iz[g.state_index[inst, wj]]]), np.array([1.0])
+                    if oname == "tau":
+                        orow = g.row_index[inst, oi]
+                        lo, hi = Sc.indptr[orow], Sc.indptr[orow + 1]
+                        rcols, rcoef = Sc.indices[lo:hi], Sc.data[lo:hi]
+                        yr = self.r_mot[rcols]
+                        sign = 1.0
+                    else:
+                        yr, rcoef = np.array([self.r_z[g.state_index[inst, oi]]]), np.array([1.0])
+                        sign = -1.0
+                    rr, cc = np.meshgrid(yr, yc, indexing="ij")
+                    coef = sign * np.outer(rcoef, ccoef)
+                    pb.weighted(rr, cc, coef, np.full(rr.size, widx))
+            woff += njac * g.n
+        self.nw_kernel = woff
+        self._pb = pb
+        self.jac = pb.build()
+
+    # --------------------------------------------------------------- evaluate
+    def unpack(self, y, yp):
+        x = y[self.ix]
+        v = y[self.iv]
+        a = yp[self.iv].copy()
+        a[self.Dv] = y[self.iad]
+        return x, v, a, y[self.ilam], y[self.iz]
+
+    def kernel_outputs(self, x, v, z, t):
+        """tau (compliant rows), dz, jacobian weights, per-group raw outputs."""
+        e = self.Sc @ x + self.e0c
+        de = self.Sc @ v
+        tau = np.zeros(len(e))
+        dz = np.zeros(self.nz)
+        weights = np.empty(self.nw_kernel)
+        left = t >= self._t_right
+        for g, (woff, njac) in zip(self.groups, self._wslices):
+            out = g.evaluate(e, de, z, t, left)
+            k, ns = g.tpl.k, len(g.tpl.states)
+            for r in range(k):
+                tau[g.row_index[:, r]] = out[r]
+            for s in range(ns):
+                dz[g.state_index[:, s]] = out[k + s]
+            for q in range(njac):
+                weights[woff + q * g.n: woff + (q + 1) * g.n] = out[k + ns + q]
+        return e, de, tau, dz, weights
+
+    def residual(self, t, y, yp, res, modes=None):
+        x, v, a, lam, z = self.unpack(y, yp)
+        e, de, tau, dz, _ = self.kernel_outputs(x, v, z, t)
+        gp, gv = self._refs(t)
+        res[self.r_kin] = yp[self.ix[self.Kx]] - v[self.Kx]
+        res[self.r_pos] = self.Gp @ x + self.e0p - gp[0]
+        res[self.r_vel] = self.Gpv @ v - np.concatenate([gp[1], gv[0]])
+        res[self.r_mot] = self.mass * a + self.ScT @ tau + self.GallT @ lam
+        res[self.r_acc] = self.Gpv @ a - np.concatenate([gp[2], gv[1]])
+        if self.mf:
+            res[self.r_fric] = self.friction.residual_rows(t, v, a, lam[self.mp + self.mv:], modes)
+        res[self.r_z] = yp[self.iz] - dz
+
+    def jacobian_data(self, t, y, yp, cj, modes=None):
+        x, v, a, lam, z = self.unpack(y, yp)
+        _, _, _, _, w = self.kernel_outputs(x, v, z, t)
+        data = self.jac.data(cj, w)
+        if self.mf:
+            data += self.friction.jacobian_data(t, v, cj, modes)
+        return data
+
+    # ----------------------------------------------------- consistent values
+    def _kkt(self, modes):
+        key = tuple(int(m) for m in modes) if self.mf else ()
+        lu = self._kkt_cache.get(key)
+        if lu is None:
+            rows = [self.Gp, self.Gv]
+            if self.mf:
+                rows.append(self.Gf[np.asarray(modes) == 0])
+            G = sp.vstack(rows).tocsc()
+            k = G.shape[0]
+            K = sp.bmat([[sp.diags(self.mass), G.T], [G, None]], format="csc") if k else sp.diags(self.mass).tocsc()
+            try:
+                lu = spla.splu(K)
+                d = np.abs(lu.U.diagonal())
+                if d.size and d.min() <= 1e-13 * d.max():
+                    raise RuntimeError("singular")
+            except RuntimeError:
+                lu = None
+            if lu is None:
+                msg = self.friction.singular_message(modes) if self.mf else \
+                    "the mass matrix restricted to the constraints is singular"
+                raise StructureError(msg)
+            self._kkt_cache[key] = (lu, G.shape[0])
+            lu = self._kkt_cache[key]
+        return lu
+
+    def accelerations(self, t, x, v, z, modes):
+        """Solve the motion + acceleration-level equations for (a, lam, dz)."""
+        e, de, tau, dz, _ = self.kernel_outputs(x, v, z, t)
+        gp, gv = self._refs(t)
+        lam_f_known = np.zeros(self.mf)
+        stuck = np.zeros(self.mf, bool)
+        if self.mf:
+            stuck = np.asarray(modes) == 0
+            lam_f_known = self.friction.known_forces(t, v, modes)
+        rhs_m = -(self.ScT @ tau)
+        if self.mf:
+            rhs_m -= self.Gf.T @ np.where(stuck, 0.0, lam_f_known)
+        rhs = np.concatenate([rhs_m, gp[2], gv[1], np.zeros(int(stuck.sum()))])
+        (lu, k) = self._kkt(modes)
+        sol = lu.solve(rhs) if k or self.n else rhs
+        a = sol[: self.n]
+        mult = sol[self.n:]
+        lam = np.zeros(self.m)
+        lam[: self.mp + self.mv] = mult[: self.mp + self.mv]
+        if self.mf:
+            lf = lam_f_known.copy()
+            lf[stuck] = mult[self.mp + self.mv:]
+            lam[self.mp + self.mv:] = lf
+        return a, lam, dz
+
+    def project(self, t, x_guess, v_guess, fixed_x=None, fixed_v=None, modes=None):
+        """Closest consistent (x, v) to the guesses: position and velocity
+        constraints hold exactly; entries of ``fixed_*`` (non-NaN) are kept.
+        Corrections are mass-weighted (an impulse for velocities)."""
+        gp, gv = self._refs(t)
+        x = self._project_level(self.Gp, gp[0] - self.e0p, x_guess, fixed_x, "position")
+        rows = [self.Gpv]
+        rhs = [np.concatenate([gp[1], gv[0]])]
+        if self.mf and modes is not None:
+            stuck = np.asarray(modes) == 0
+            rows.append(self.Gf[stuck])
+            rhs.append(np.zeros(int(stuck.sum())))
+        v = self._project_level(sp.vstack(rows).tocsr(), np.concatenate(rhs), v_guess, fixed_v, "velocity")
+        return x, v
+
+    def _project_level(self, G, g, guess, fixed, what):
+        guess = np.array(guess, float)
+        fixed = np.full(self.n, np.nan) if fixed is None else np.asarray(fixed, float)
+        fmask = np.isfinite(fixed)
+        guess[fmask] = fixed[fmask]
+        if G.shape[0] == 0:
+            return guess
+        r = g - G @ guess
+        scale = max(1.0, np.abs(g).max(initial=0.0), np.abs(guess).max(initial=0.0))
+        if np.abs(r).max() <= 1e-14 * scale:
+            return guess
+        free = ~fmask
+        Gf = G[:, free]
+        w = 1.0 / np.sqrt(np.maximum(self.mass[free], 1e-300 + 1e-12 * self.mass.max(initial=1.0)))
+        sol = spla.lsqr(Gf @ sp.diags(w), r, atol=1e-15, btol=1e-15, iter_lim=10 * (G.shape[1] + 10))[0]
+        out = guess.copy()
+        out[free] += w * sol
+        resid = g - G @ out
+        if np.abs(resid).max() > 1e-9 * scale:
+            bad = np.nonzero(np.abs(resid) > 1e-9 * scale)[0]
+            st = self.structure
+            rows_all = st.position + st.speed + st.friction if what == "velocity" else st.position
+            names = sorted({f"{type(rows_all[i].device).__name__} '{rows_all[i].device.name}'"
+                            for i in bad if i < len(rows_all)})
+            fixed_names = [st.coord_names[k] for k in np.nonzero(fmask)[0]]
+            raise StructureError(
+                f"inconsistent start {what}s: the fixed start values of {fixed_names} contradict the constraints of "
+                f"{names}; give the start {what} on one mass of each rigidly joined group only (or none)")
+        return out
+
+    def initial_y(self, t0, modes=None):
+        st = self.structure
+        modes = self.modes0 if modes is None else modes
+        guess_x = np.where(np.isfinite(st.start_pos), st.start_pos, 0.0)
+        guess_v = np.where(np.isfinite(st.start_vel), st.start_vel, 0.0)
+        x, v = self.project(t0, guess_x, guess_v, st.start_pos, st.start_vel, modes)
+        z = self.state_start.copy()
+        return self.assemble_y(t0, x, v, z, modes)
+
+    def assemble_y(self, t, x, v, z, modes):
+        """Consistent (y, y') from positions, velocities and device states.
+
+        The derivatives of the algebraic unknowns (dummy accelerations and
+        constraint forces) are not needed by the residual but feed IDA's
+        first predictor: left at zero, a force that starts growing linearly
+        fails the error test at any step size, so they are taken from a
+        forward difference along the motion.
+        """
+        a, lam, dz = self.accelerations(t, x, v, z, modes)
+        y = np.zeros(self.N)
+        yp = np.zeros(self.N)
+        y[self.ix], y[self.iv], y[self.iad], y[self.ilam], y[self.iz] = x, v, a[self.Dv], lam, z
+        yp[self.ix], yp[self.iv], yp[self.iz] = v, a, dz
+        if len(self.iad) or self.m:
+            d = 1e-7 * max(1.0, abs(t))
+            if t + d < self._t_right:
+                a2, lam2, _ = self.accelerations(t + d, x + d * v, v + d * a, z + d * dz, modes)
+                yp[self.iad] = (a2[self.Dv] - a[self.Dv]) / d
+                yp[self.ilam] = (lam2 - lam) / d
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yp))):
+            bad = [self.structure.coord_names[k] for k in range(self.n)
+                   if not (np.isfinite(a[k]) and np.isfinite(x[k]) and np.isfinite(v[k]))]
+            raise SimulationError(f"non-finite initial values at t={t} (involving {bad or 'device states'}); "
+                                  f"check parameters and signals for NaN/inf")
+        return y, yp
+
+    # --------------------------------------------------------------- ODE form
+    def ode_size(self) -> int:
+        return len(self.Kx) + len(self.Kv) + self.nz
+
+    def ode_state(self, y):
+        return np.concatenate([y[self.ix[self.Kx]], y[self.iv[self.Kv]], y[self.iz]])
+
+    def ode_lift(self, t, u, modes):
+        """Full (x, v, z) from the ODE state: dummy coordinates from the constraints."""
+        nkx, nkv = len(self.Kx), len(self.Kv)
+        x = np.zeros(self.n)
+        v = np.zeros(self.n)
+        x[self.Kx] = u[:nkx]
+        v[self.Kv] = u[nkx:nkx + nkv]
+        z = u[nkx + nkv:]
+        if self.mp:
+            gp, gv = self._refs(t)
+            x[self.Dx] = self._dummy_solve("x", gp[0] - self.e0p - self.Gp[:, self.Kx] @ x[self.Kx])
+        if len(self.Dv):
+            gp, gv = self._refs(t)
+            rhs = np.concatenate([gp[1], gv[0]]) - self.Gpv[:, self.Kv] @ v[self.Kv]
+            v[self.Dv] = self._dummy_solve("v", rhs)
+        return x, v, z
+
+    def _dummy_solve(self, level, rhs):
+        cache = self.__dict__.setdefault("_dummy_lu", {})
+        lu = cache.get(level)
+        if lu is None:
+            G, D = (self.Gp, self.Dx) if level == "x" else (self.Gpv, self.Dv)
+            lu = cache[level] = spla.splu(G[:, D].tocsc())
+        return lu.solve(rhs)
+
+    def ode_rhs(self, t, u, modes):
+        x, v, z = self.ode_lift(t, u, modes)
+        a, lam, dz = self.accelerations(t, x, v, z, modes)
+        return np.concatenate([v[self.Kx], a[self.Kv], dz])
+
+    def y_from_ode(self, t, u, modes):
+        x, v, z = self.ode_lift(t, u, modes)
+        return self.assemble_y(t, x, v, z, modes)
+
+    # ------------------------------------------------------------- utilities
+    def solver_pattern(self):
+        return self.jac.pattern
+
+    def stiffness_estimate(self):
+        """Diagonal stiffness of each compliant row at the start (for warnings)."""
+        y, yp = self.initial_y(0.0)
+        x, v, a, lam, z = self.unpack(y, yp)
+        e, de, tau, dz, w = self.kernel_outputs(x, v, z, 0.0)
+        k = np.zeros(self.Sc.shape[0])
+        for g, (woff, njac) in zip(self.groups, self._wslices):
+            for q, ((on, oi), (wn, wj)) in enumerate(g.tpl.jac_entries):
+                if on == "tau" and wn == "e" and oi == wj:
+                    k[g.row_index[:, oi]] = w[woff + q * g.n: woff + (q + 1) * g.n]
+        return k
+
+    def warn_spectrum(self, ratio: float = 1e3):
+        """Position 2: warn when link frequencies or masses spread over many decades."""
+        if self.Sc.shape[0] == 0:
+            return None
+        k = self.stiffness_estimate()
+        inv_m = np.where(self.mass > 0, 1.0 / np.where(self.mass > 0, self.mass, 1.0), 0.0)
+        S2 = self.Sc.multiply(self.Sc)
+        w2 = np.abs(k) * (S2 @ inv_m)
+        w2 = w2[w2 > 0]
+        msg = []
+        if w2.size >= 2 and np.sqrt(w2.max() / w2.min()) > ratio:
+            msg.append(f"link frequencies spread over a ratio of {np.sqrt(w2.max() / w2.min()):.3g}")
+        mpos = self.mass[self.mass > 0]
+        if mpos.size >= 2 and mpos.max() / mpos.min() > ratio ** 2:
+            msg.append(f"masses spread over a ratio of {mpos.max() / mpos.min():.3g}")
+        if msg:
+            warnings.warn(
+                f"model '{self.model.name}': stretched spectrum ({'; '.join(msg)}). Regular-system Position 2: "
+                f"masses far larger than the rest may be replaced by ground and links far stiffer than the rest by "
+                f"rigid links; rm.Scene reduces the model automatically.", RegularityWarning, stacklevel=3)
+        return msg
+
+
+def compile_model(model) -> CompiledSystem:
+    return CompiledSystem(build_structure(model))

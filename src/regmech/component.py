@@ -1,0 +1,293 @@
+"""Component base classes: parameters, flanges, roles.
+
+A regular mechanical system is made of *masses* (``Body``), the *ground*
+(``Ground``) and massless *devices* (``Device``) that join them. A device is
+described by
+
+* its **structure**: ``rows()``, a list of linear maps from its flanges'
+  positions to device coordinates, ``e_r = sum_f c_rf x_f`` (the rows of
+  the structure matrix of SOURCES.md 000);
+* its **law**, by kind:
+
+  - ``compliant``: generalised forces ``tau_r = law(e, de)``, written once
+    per class with sympy-compatible expressions (``self.c`` is a symbol when
+    the class template is built, a number otherwise);
+  - ``rigid``: ``e_r = 0``, ``tau_r`` a constraint force (Lagrange multiplier);
+  - ``position`` / ``speed``: ``e_r = ref(t)`` or ``de_r = ref(t)``;
+  - ``friction``: variable structure with a mode (see ``components.friction``).
+
+The force that a device exerts *on itself* at flange f is
+``flange.tau = sum_r c_rf tau_r``; the bodies receive the opposite, so the
+power a device absorbs is ``sum_r tau_r * de_r``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .errors import ParameterError, UnknownFlangeError
+from .ports import DOMAINS, ROTATIONAL, TRANSLATIONAL, VARIABLE_NAMES, Flange
+from .signals import Signal, as_signal
+
+REQUIRED = object()
+
+
+class Param:
+    """A declared parameter with a range check.
+
+    check: ``"real"`` (finite), ``"positive"`` (> 0), ``"nonnegative"`` (>= 0),
+    ``"nonzero"``, ``"signal"`` (number, Signal or callable of t),
+    ``"table"`` ((n, 2) points), ``"choice"`` (one of ``choices``),
+    ``"any"``. ``optional=True`` also admits None.
+    """
+
+    def __init__(self, default=REQUIRED, check: str = "real", *, optional: bool = False,
+                 unit: str = "", doc: str = "", choices: tuple = ()):
+        self.default = default
+        self.check = check
+        self.optional = optional
+        self.unit = unit
+        self.doc = doc
+        self.choices = choices
+        self.name = "?"
+
+    def __set_name__(self, owner, name):
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        return obj._values[self.name]
+
+    def __set__(self, obj, value):
+        obj._values[self.name] = self.validate(obj, value)
+        obj._changed()
+
+    def validate(self, comp, value):
+        where = f"{type(comp).__name__} '{comp.name}'"
+        if value is None and self.optional:
+            return None
+        if self.check == "signal":
+            return as_signal(value, where, self.name)
+        if self.check == "any":
+            return value
+        if self.check == "choice":
+            if value not in self.choices:
+                raise ParameterError(f"{where}: parameter '{self.name}' must be one of {self.choices}, got {value!r}")
+            return value
+        if self.check == "table":
+            try:
+                arr = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                arr = None
+            if arr is None or arr.ndim != 2 or arr.shape[1] != 2 or len(arr) < 1 or not np.all(np.isfinite(arr)):
+                raise ParameterError(f"{where}: parameter '{self.name}' must be finite (x, y) pairs, got {value!r}")
+            if np.any(np.diff(arr[:, 0]) <= 0):
+                raise ParameterError(f"{where}: parameter '{self.name}' needs strictly increasing x values")
+            return arr
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise ParameterError(f"{where}: parameter '{self.name}' must be a real number{self._unit()}, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ParameterError(f"{where}: parameter '{self.name}' must be finite, got {value!r}")
+        bad = {"positive": value <= 0, "nonnegative": value < 0, "nonzero": value == 0}.get(self.check, False)
+        if bad:
+            want = {"positive": "> 0", "nonnegative": ">= 0", "nonzero": "non-zero"}[self.check]
+            raise ParameterError(f"{where}: parameter '{self.name}' must be {want}{self._unit()}, got {value!r}")
+        return value
+
+    def _unit(self):
+        return f" [{self.unit}]" if self.unit else ""
+
+
+class Component:
+    """Base of every component. Subclasses declare ``Param`` attributes and ``flanges``.
+
+    ``flanges`` is a tuple of (name, domain) or (name, domain, grounded_if_free).
+    ``domain`` may be ``None`` in a class that takes the domain as the
+    ``domain`` constructor keyword (e.g. ``Spring(..., domain="translational")``).
+    """
+
+    role: ClassVar[str] = "abstract"
+    flanges: ClassVar[tuple] = ()
+    default_domain: ClassVar[str] = ROTATIONAL
+
+    def __init__(self, name: str, *, domain: str | None = None, **params: Any):
+        if not isinstance(name, str) or not name or "." in name or name.strip() != name:
+            raise ParameterError(f"{type(self).__name__}: name must be a non-empty string without '.' or spaces at the ends, got {name!r}")
+        self.name = name
+        self.model = None
+        if domain is None:
+            domain = self.default_domain
+        if domain not in DOMAINS:
+            raise ParameterError(f"{type(self).__name__} '{name}': domain must be one of {DOMAINS}, got {domain!r}")
+        self.domain = domain
+        self._values: dict[str, Any] = {}
+        declared = self.param_specs()
+        unknown = set(params) - set(declared)
+        if unknown:
+            raise ParameterError(
+                f"{type(self).__name__} '{name}': unknown parameter(s) {sorted(unknown)}; "
+                f"it takes {sorted(declared)}")
+        for pname, spec in declared.items():
+            if pname in params:
+                value = params[pname]
+            elif spec.default is REQUIRED:
+                raise ParameterError(f"{type(self).__name__} '{name}': parameter '{pname}' is required{spec._unit()}")
+            else:
+                value = spec.default
+            self._values[pname] = spec.validate(self, value)
+        self._flanges: dict[str, Flange] = {}
+        for spec in self.flanges:
+            fname, fdomain = spec[0], spec[1] or domain
+            grounded = bool(spec[2]) if len(spec) > 2 else False
+            self._flanges[fname] = Flange(self, fname, fdomain, grounded)
+        self.validate()
+
+    # -- parameters ---------------------------------------------------------
+    @classmethod
+    def param_specs(cls) -> dict[str, Param]:
+        specs: dict[str, Param] = {}
+        for klass in reversed(cls.__mro__):
+            for key, val in vars(klass).items():
+                if isinstance(val, Param):
+                    specs[key] = val
+        return specs
+
+    def validate(self) -> None:
+        """Cross-parameter checks; raise ParameterError naming the component."""
+
+    def params(self) -> dict[str, Any]:
+        return dict(self._values)
+
+    def _changed(self):
+        if self.model is not None:
+            self.model._invalidate()
+
+    # -- flanges ------------------------------------------------------------
+    def get_flange(self, name: str) -> Flange:
+        try:
+            return self._flanges[name]
+        except KeyError:
+            raise UnknownFlangeError(
+                f"{type(self).__name__} '{self.name}' has no flange '{name}'; "
+                f"its flanges are {sorted(self._flanges)}") from None
+
+    def __getattr__(self, attr: str):
+        flanges = self.__dict__.get("_flanges")
+        if flanges is not None and attr in flanges:
+            return flanges[attr]
+        if attr.startswith("flange") or attr in ("support", "carrier", "sun", "ring", "left", "right"):
+            raise UnknownFlangeError(
+                f"{type(self).__name__} '{self.__dict__.get('name', '?')}' has no flange '{attr}'; "
+                f"its flanges are {sorted(flanges or {})}")
+        raise AttributeError(f"{type(self).__name__!s} object has no attribute {attr!r}")
+
+    @property
+    def flange_list(self) -> list[Flange]:
+        return list(self._flanges.values())
+
+    def var_names(self) -> tuple[str, str, str, str]:
+        return VARIABLE_NAMES[self.domain]
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self._values.items())
+        return f"{type(self).__name__}({self.name!r}{', ' if args else ''}{args})"
+
+
+class Body(Component):
+    """A lumped mass or inertia: all its flanges share one coordinate.
+
+    ``mass_param`` names the parameter holding J [kg m^2] or m [kg];
+    ``start_params`` the (position, velocity) start values; a start value
+    given (not None) is *fixed*: initialisation keeps it and adjusts the
+    others. Equation: ``J a = sum of torques on the body``.
+    """
+
+    role = "body"
+    mass_param: ClassVar[str] = "J"
+    start_params: ClassVar[tuple[str, str]] = ("phi0", "w0")
+
+    @property
+    def mass(self) -> float:
+        return self._values[self.mass_param]
+
+    @property
+    def start(self) -> tuple[float | None, float | None]:
+        return self._values[self.start_params[0]], self._values[self.start_params[1]]
+
+
+class Ground(Component):
+    """The ground (fixed frame) at a constant position."""
+
+    role = "ground"
+    position_param: ClassVar[str] = "phi0"
+
+    @property
+    def position(self) -> float:
+        return self._values[self.position_param]
+
+
+class Device(Component):
+    """A massless device joining masses (see module docstring)."""
+
+    role = "device"
+    kind: ClassVar[str] = "compliant"
+    #: output names of (row-0 coordinate, its rate, its acceleration, force)
+    #: per domain; None entries are not exported.
+    rel_names: ClassVar[dict] = {
+        ROTATIONAL: ("phi_rel", "w_rel", "a_rel", "tau"),
+        TRANSLATIONAL: ("s_rel", "v_rel", "a_rel", "f"),
+    }
+    #: internal differential states: name -> name of the start parameter (or None)
+    states: ClassVar[dict[str, str | None]] = {}
+    #: True for devices that feed energy in (sources): the energy audit counts
+    #: their absorbed power with the opposite sign, as work of the sources
+    is_source: ClassVar[bool] = False
+
+    def device_kind(self) -> str:
+        """Kind of this instance (a class may decide per instance, e.g. Shaft)."""
+        return self.kind
+
+    def rows(self) -> list[dict[str, float]]:
+        """Structure rows: coefficient of each flange's position in each device coordinate."""
+        return [{"flange_a": -1.0, "flange_b": 1.0}]
+
+    # -- compliant devices: symbolic laws ----------------------------------
+    def law(self, rel, rel_dot):
+        """Transmitted torque/force of a one-row compliant device (sympy-compatible)."""
+        raise NotImplementedError(f"{type(self).__name__} must define law(rel, rel_dot) or laws(e, de)")
+
+    def laws(self, e, de):
+        """Generalised forces of all rows; default: ``[law(e[0], de[0])]``."""
+        return [self.law(e[0], de[0])]
+
+    def derivatives(self, e, de):
+        """Time derivatives of the internal ``states`` (sympy-compatible)."""
+        return []
+
+    def potential(self, e):
+        """Stored energy as a function of the device coordinates (0 if none)."""
+        return 0
+
+
+def bound_value(comp: Component, name: str):
+    """Numeric value of a parameter or a Signal (callers evaluate signals)."""
+    return comp._values[name]
+
+
+def signal_params(cls) -> list[str]:
+    return [n for n, p in cls.param_specs().items() if p.check == "signal"]
+
+
+def numeric_params(cls) -> list[str]:
+    return [n for n, p in cls.param_specs().items()
+            if p.check in ("real", "positive", "nonnegative", "nonzero")]
+
+
+__all__ = ["Param", "Component", "Body", "Ground", "Device", "REQUIRED", "Signal",
+           "ROTATIONAL", "TRANSLATIONAL"]

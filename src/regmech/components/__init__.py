@@ -1,0 +1,13 @@
+"""Component classes (names and parameters follow the Modelica Standard Library)."""
+
+from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
+from .gears import IdealGear
+from .inertial import Fixed, Inertia, Mass
+from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
+
+__all__ = [
+    "Fixed", "Inertia", "Mass",
+    "Spring", "Damper", "SpringDamper", "Shaft", "TwoFlangeCompliant",
+    "IdealGear",
+    "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
+]

@@ -1,0 +1,41 @@
+"""Errors and warnings of regmech.
+
+Every error names the component(s) involved and says how to fix the model;
+nothing in regmech returns NaNs silently.
+"""
+
+
+class RegmechError(Exception):
+    """Base class of every error raised by regmech."""
+
+
+class ParameterError(RegmechError, ValueError):
+    """A component parameter is missing, of the wrong type or out of range."""
+
+
+class ModelError(RegmechError):
+    """The model is assembled wrongly (names, flanges, connections)."""
+
+
+class UnknownFlangeError(ModelError, AttributeError):
+    """A flange (or attribute) that the component does not have."""
+
+
+class RegularityError(ModelError):
+    """The model breaks a rule of the regular mechanical system."""
+
+
+class StructureError(ModelError):
+    """Structurally or numerically singular, over- or under-determined equations."""
+
+
+class SimulationError(RegmechError):
+    """A solver failed, or the solution stopped being trustworthy."""
+
+
+class ChatteringError(SimulationError):
+    """A variable-structure device changed mode too often in a short time."""
+
+
+class RegularityWarning(UserWarning):
+    """Legal but questionable model (e.g. a stretched spectrum, Position 2)."""

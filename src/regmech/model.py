@@ -1,0 +1,147 @@
+"""``Model``: components plus acausal connections, kept as a networkx graph.
+
+The graph has one node per component (``kind="component"``) and one per
+flange (``kind="flange"``, named ``"comp.flange"``); ``owns`` edges join a
+component to its flanges, ``connect`` edges join connected flanges. A
+connection set is a connected component of the flange nodes under
+``connect`` edges (across variables equal, flows sum to zero).
+"""
+
+from __future__ import annotations
+
+from typing import Iterable
+
+import networkx as nx
+
+from .component import Component
+from .errors import ModelError, UnknownFlangeError
+from .ports import Flange
+
+
+class Model:
+    """A regular mechanical system under construction.
+
+    >>> m = Model("demo")
+    >>> J1 = m.add(Inertia("J1", J=1.0))
+    >>> m.connect(a.flange, J1.flange_a)
+    """
+
+    def __init__(self, name: str = "model"):
+        self.name = name
+        self.components: dict[str, Component] = {}
+        self.graph = nx.Graph()
+        self._compiled = None
+
+    # -- assembly -----------------------------------------------------------
+    def add(self, component: Component) -> Component:
+        """Add a component; returns it, so ``J1 = m.add(Inertia(...))`` reads well."""
+        if not isinstance(component, Component):
+            raise ModelError(f"Model '{self.name}': add() takes a regmech component, got {component!r}")
+        if component.model is self:
+            raise ModelError(f"{type(component).__name__} '{component.name}' was added to model '{self.name}' twice; add it once")
+        if component.model is not None:
+            raise ModelError(f"{type(component).__name__} '{component.name}' already belongs to model "
+                             f"'{component.model.name}'; create a new instance for model '{self.name}'")
+        if component.name in self.components:
+            raise ModelError(f"Model '{self.name}' already has a component named '{component.name}'; "
+                             f"give each component a unique name")
+        component.model = self
+        self.components[component.name] = component
+        self.graph.add_node(component.name, kind="component", component=component)
+        for fl in component.flange_list:
+            self.graph.add_node(fl.full_name, kind="flange", flange=fl)
+            self.graph.add_edge(component.name, fl.full_name, kind="owns")
+        self._invalidate()
+        return component
+
+    def add_all(self, components: Iterable[Component]) -> list[Component]:
+        return [self.add(c) for c in components]
+
+    def _resolve(self, flange) -> Flange:
+        if isinstance(flange, str):
+            comp_name, _, fname = flange.partition(".")
+            if comp_name not in self.components:
+                raise ModelError(f"Model '{self.name}' has no component '{comp_name}' (in connect('{flange}'))")
+            flange = self.components[comp_name].get_flange(fname)
+        if not isinstance(flange, Flange):
+            raise ModelError(f"connect() takes flanges such as J1.flange_a or 'J1.flange_a', got {flange!r}")
+        owner = flange.component
+        if owner.model is not self:
+            raise ModelError(f"flange {flange.full_name} belongs to a component that is not in model "
+                             f"'{self.name}'; add {type(owner).__name__} '{owner.name}' first")
+        return flange
+
+    def connect(self, a, b) -> None:
+        """Connect two flanges: across variables equal, flows sum to zero."""
+        fa, fb = self._resolve(a), self._resolve(b)
+        if fa is fb:
+            raise ModelError(f"connect({fa.full_name}, {fb.full_name}): a flange cannot be connected to itself")
+        if fa.domain != fb.domain:
+            raise ModelError(
+                f"connect({fa.full_name}, {fb.full_name}): cannot connect a {fa.domain} flange to a "
+                f"{fb.domain} flange; use a device that converts between them (e.g. a Wheel or an ideal rack)")
+        self.graph.add_edge(fa.full_name, fb.full_name, kind="connect")
+        self._invalidate()
+
+    def __getitem__(self, name: str) -> Component:
+        try:
+            return self.components[name]
+        except KeyError:
+            raise ModelError(f"Model '{self.name}' has no component '{name}'") from None
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.components
+
+    def __iter__(self):
+        return iter(self.components.values())
+
+    def __len__(self) -> int:
+        return len(self.components)
+
+    def connection_sets(self) -> list[list[Flange]]:
+        """Flanges grouped by connection set (unconnected flanges alone)."""
+        flange_nodes = [n for n, d in self.graph.nodes(data=True) if d["kind"] == "flange"]
+        sub = nx.Graph()
+        sub.add_nodes_from(flange_nodes)
+        sub.add_edges_from((u, v) for u, v, d in self.graph.edges(data=True) if d["kind"] == "connect")
+        return [[self.graph.nodes[n]["flange"] for n in sorted(cc)] for cc in nx.connected_components(sub)]
+
+    def _invalidate(self) -> None:
+        self._compiled = None
+
+    # -- analysis and simulation ---------------------------------------------
+    def check(self, warn: bool = True):
+        """Regularity check (raises ``RegularityError`` / ``ModelError``); returns the report."""
+        from .structure.regularity import check_model
+        report = check_model(self)
+        if warn:
+            from .compile.system import compile_model
+            compiled = compile_model(self)
+            compiled.warn_spectrum()
+        return report
+
+    def compile(self):
+        """Build (once, cached until the model changes) the compiled system."""
+        if self._compiled is None:
+            from .compile.system import compile_model
+            self._compiled = compile_model(self)
+        return self._compiled
+
+    def simulate(self, t_end: float, dt_out: float | None = None, solver: str = "ida", *,
+                 t_start: float = 0.0, **options):
+        """Simulate from ``t_start`` to ``t_end``; returns a ``Result``.
+
+        ``dt_out`` is the output interval (default: 500 points); ``solver``
+        one of ``regmech.solvers.SOLVERS``; remaining options (``rtol``,
+        ``atol``, ...) go to the solver.
+        """
+        from .solvers import simulate
+        return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, t_start=t_start, **options)
+
+    def linearize(self, t: float = 0.0, modes=None, at=None):
+        """Structural-matrix form ``M q'' + B q' + C q = W u`` (see ``compile.linear``)."""
+        from .compile.linear import linearize
+        return linearize(self.compile(), t=t, modes=modes, at=at)
+
+    def __repr__(self) -> str:
+        return f"Model({self.name!r}, {len(self.components)} components)"

@@ -1,0 +1,137 @@
+"""``Result``: the outcome of any solver, with one interface.
+
+``res.t`` (output times; an event instant appears twice, before and after),
+``res["J1.w"]`` any named signal (``res.names``), ``res.events`` the mode
+changes, ``res.stats`` (solver, wall time, steps, residual/RHS calls,
+Jacobians, ...), ``res.to_dataframe()``, ``res.to_csv(path)``, ``res.plot()``.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import RegmechError
+
+MODE_NAMES = {-1: "Backward", 0: "Stuck", 1: "Forward", 2: "Free"}
+
+
+@dataclass(frozen=True)
+class Event:
+    """A mode change of a variable-structure device."""
+
+    t: float
+    component: str
+    old_mode: int
+    new_mode: int
+
+    def __str__(self):
+        return (f"t={self.t:.6g}: {self.component} {MODE_NAMES.get(self.old_mode, self.old_mode)} -> "
+                f"{MODE_NAMES.get(self.new_mode, self.new_mode)}")
+
+
+@dataclass
+class Stats:
+    solver: str = ""
+    wall_time: float = 0.0
+    compile_time: float = 0.0
+    steps: int = 0
+    rhs_calls: int = 0
+    jac_calls: int = 0
+    segments: int = 0
+    events: int = 0
+    extra: dict = field(default_factory=dict)
+
+    def __str__(self):
+        return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms, {self.steps} steps, {self.rhs_calls} residual/RHS "
+                f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events")
+
+
+class Result:
+    def __init__(self, trajectory, events=(), stats: Stats | None = None, model_name: str = ""):
+        self._traj = trajectory
+        self.t = trajectory.t
+        self.events: list[Event] = list(events)
+        self.stats = stats or Stats()
+        self.model_name = model_name
+        self._cache: dict = {}
+
+    @property
+    def names(self) -> list[str]:
+        return self._traj.names()
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._traj._index
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name in self._cache:
+            return self._cache[name]
+        val = self._traj.get(name)
+        if val is None:
+            close = [n for n in self.names if n.split(".")[0] == name.split(".")[0]]
+            hint = f"; '{name.split('.')[0]}' has {close}" if close else ""
+            raise KeyError(f"no signal '{name}' in the result of model '{self.model_name}'{hint}")
+        self._cache[name] = val
+        return val
+
+    def at(self, name: str, t: float) -> float:
+        """Linear interpolation of a signal at time t (after the event at t, if any)."""
+        tt = self.t
+        k = int(np.searchsorted(tt, t, side="right"))
+        return float(np.interp(t, tt[:k] if k else tt, self[name][:k] if k else self[name]))
+
+    def final(self, name: str) -> float:
+        return float(self[name][-1])
+
+    def to_dataframe(self, names=None):
+        try:
+            import pandas as pd
+        except ImportError as exc:  # pragma: no cover - optional
+            raise RegmechError("to_dataframe() needs pandas: pip install 'regmech[pandas]'") from exc
+        names = names or self.names
+        return pd.DataFrame({"time": self.t, **{n: self[n] for n in names}})
+
+    def to_csv(self, path, names=None) -> None:
+        names = names or self.names
+        cols = [self.t] + [self[n] for n in names]
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["time"] + list(names))
+            for row in zip(*cols):
+                w.writerow([repr(float(v)) for v in row])
+
+    def plot(self, names=None, ax=None, path=None, title=None, mark_events=True):
+        """Plot signals against time; mode changes are marked by vertical lines."""
+        try:
+            import matplotlib
+            if path is not None and ax is None:
+                matplotlib.use("Agg", force=False)
+            import matplotlib.pyplot as plt
+        except ImportError as exc:  # pragma: no cover - optional
+            raise RegmechError("plot() needs matplotlib: pip install 'regmech[plot]'") from exc
+        if names is None:
+            names = [n for n in self.names if n.endswith((".w", ".v"))][:8]
+        if isinstance(names, str):
+            names = [names]
+        fig = None
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(9, 5))
+        for n in names:
+            ax.plot(self.t, self[n], label=n)
+        if mark_events:
+            for i, ev in enumerate(self.events):
+                ax.axvline(ev.t, color="0.6", lw=0.7, ls="--", label="mode change" if i == 0 else None)
+        ax.set_xlabel("time [s]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+        ax.set_title(title or self.model_name)
+        if path is not None:
+            (fig or ax.figure).savefig(path, dpi=120, bbox_inches="tight")
+            if fig is not None:
+                plt.close(fig)
+        return ax
+
+    def __repr__(self):
+        return f"<Result {self.model_name}: {len(self.t)} points, {len(self.events)} events, {self.stats}>"

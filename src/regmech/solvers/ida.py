@@ -1,0 +1,183 @@
+"""SUNDIALS IDA (scikit-sundae) on the compiled index-1 DAE, with a hybrid loop.
+
+The run is split into segments at the signals' breakpoints (time events)
+and at mode changes of variable-structure devices (state events found by
+IDA's root finding). Each segment gets a fresh solver (about 50 us): the
+event bookkeeping of scikit-sundae accumulates across ``solve`` calls, so a
+solver is never reused after an event. At every segment start the values
+are made consistent by the compiler (projection onto the constraints,
+accelerations and constraint forces from one sparse KKT solve), so IDA's own
+initial-condition search is not needed.
+
+Linear solver: ``dense`` below ``dense_max`` unknowns (60), ``sparse``
+(SuperLU_MT) with the analytic Jacobian above; ``linsolver`` overrides.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import SimulationError
+from ..result import Event, Result, Stats
+from . import register
+from .common import Recorder, check_times, output_grid, signal_breakpoints
+
+
+def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events):
+    import sksundae
+
+    def resfn(t, y, yp, res):
+        c.residual(t, y, yp, res, modes)
+
+    opts = dict(rtol=rtol, atol=atol, algebraic_idx=c.algebraic, max_num_steps=200000,
+                max_order=max_order, calc_initcond=None)
+    if max_step:
+        opts["max_step"] = max_step
+    if linsolver == "dense":
+        rows, cols = c.jac.rows, c.jac.cols
+
+        def jacfn(t, y, yp, res, cj, JJ):
+            JJ[:, :] = 0.0
+            np.add.at(JJ, (rows, cols), c.jacobian_data(t, y, yp, cj, modes))
+        opts.update(linsolver="dense", jacfn=jacfn)
+    elif linsolver == "sparse":
+        def jacfn(t, y, yp, res, cj, JJ):
+            JJ[:] = c.jacobian_data(t, y, yp, cj, modes)
+        opts.update(linsolver="sparse", sparsity=c.jac.pattern, jacfn=jacfn)
+    elif linsolver == "band":
+        pat = c.jac.pattern.tocoo()
+        opts.update(linsolver="band", lband=int(max(0, (pat.row - pat.col).max())),
+                    uband=int(max(0, (pat.col - pat.row).max())))
+    else:
+        raise SimulationError(f"unknown linsolver {linsolver!r}; use 'dense', 'sparse' or 'band'")
+    if with_events:
+        fr = c.friction
+
+        def eventsfn(t, y, yp, ev):
+            ev[:] = fr.event_values(t, y, yp, modes)
+        eventsfn.terminal = [True] * fr.n_events
+        eventsfn.direction = [-1] * fr.n_events
+        opts.update(eventsfn=eventsfn, num_events=fr.n_events)
+    return sksundae.ida.IDA(resfn, **opts)
+
+
+def _blame(c, y, yp):
+    """Names of the masses with the largest accelerations and the devices with the largest forces."""
+    x, v, a, lam, z = c.unpack(y, yp)
+    st = c.structure
+    order = np.argsort(-np.abs(np.nan_to_num(a, nan=np.inf)))[:3]
+    names = [st.coord_names[k] for k in order]
+    if len(lam):
+        cons = st.position + st.speed + st.friction
+        j = int(np.argmax(np.abs(np.nan_to_num(lam, nan=np.inf))))
+        names.append(cons[j].device.name)
+    return names
+
+
+@register("ida")
+def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
+                 max_step=None, max_order=5, dense_max=60, max_events=100000, chatter_window=None,
+                 chatter_count=50, progress=False):
+    """IDA with analytic sparse Jacobian and event handling (see module docstring)."""
+    t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    tc = time.perf_counter()
+    c = model.compile()
+    compile_time = time.perf_counter() - tc
+    t0 = time.perf_counter()
+    atol = rtol * 1e-2 if atol is None else atol
+    if linsolver is None:
+        linsolver = "dense" if c.N <= dense_max else "sparse"
+    grid = output_grid(t_start, t_end, dt_out)
+    bps = signal_breakpoints(model, t_start, t_end)
+    fr = c.friction
+    modes = fr.start_modes(t_start) if fr else c.modes0
+    c._t_right = bps[0] if bps else np.inf
+    stats = Stats(solver="ida", compile_time=compile_time)
+    if fr:
+        y, yp, modes, evs = fr.settle(t_start, None, modes, initial=True)
+    else:
+        y, yp = c.initial_y(t_start, modes)
+        evs = []
+    events: list[Event] = []
+    rec = Recorder(c.mf)
+    rec.add(t_start, y, yp, modes)
+    t = t_start
+    bp_iter = iter(bps + [t_end])
+    t_stop = next(bp_iter)
+    guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
+    while t < t_end:
+        c._t_right = t_stop
+        with_events = bool(fr) and fr.n_events > 0
+        solver = _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events)
+        inner = grid[(grid > t) & (grid < t_stop)]
+        tspan = np.concatenate([[t], inner, [t_stop]])
+        record = np.ones(len(tspan), bool)
+        if len(tspan) == 2:
+            tspan = np.array([t, 0.5 * (t + t_stop), t_stop])
+            record = np.array([True, False, True])
+        try:
+            sol = solver.solve(tspan, y, yp)
+        except (RuntimeError, ValueError) as exc:
+            raise SimulationError(f"IDA failed near t={t:.6g} in model '{model.name}': {exc}; components most "
+                                  f"involved: {_blame(c, y, yp)}") from exc
+        stats.segments += 1
+        stats.rhs_calls += int(getattr(sol, "nfev", 0) or 0)
+        stats.jac_calls += int(getattr(sol, "njev", 0) or 0)
+        if sol.status < 0:
+            last_y = sol.y[-1] if len(sol.y) else y
+            last_yp = sol.yp[-1] if len(sol.yp) else yp
+            t_fail = sol.t[-1] if len(sol.t) else t
+            raise SimulationError(
+                f"IDA failed at t={t_fail:.6g} in model '{model.name}': {sol.message}; components most involved: "
+                f"{_blame(c, last_y, last_yp)}. Try a tighter rtol, check parameters (very stiff links or tiny "
+                f"masses) or use rm.Scene to reduce the model")
+        n_rows = len(sol.t)
+        for k in range(1, n_rows):
+            tk = sol.t[k]
+            if sol.status == 2 and k == n_rows - 1:
+                break
+            if k < len(record) and not record[k]:
+                continue
+            rec.add(tk, sol.y[k], sol.yp[k], modes, left=(tk >= t_stop))
+        if sol.status == 2:
+            t_ev = float(sol.t_events[-1])
+            y_ev, yp_ev = np.array(sol.y_events[-1]), np.array(sol.yp_events[-1])
+            rec.add(t_ev, y_ev, yp_ev, modes)
+            y, yp, new_modes, changes = fr.settle(t_ev, (y_ev, yp_ev), modes, crossed=sol.i_events[-1])
+            for (name, old, new) in changes:
+                events.append(Event(t_ev, name, old, new))
+                guard.record(t_ev, name)
+            modes = new_modes
+            rec.add(t_ev, y, yp, modes)
+            t = t_ev
+            if len(events) > max_events:
+                raise SimulationError(f"more than {max_events} mode changes; raise max_events or simplify the model")
+            continue
+        # reached t_stop: a time event (signal breakpoint) or the end
+        y, yp = np.array(sol.y[-1]), np.array(sol.yp[-1])
+        t = t_stop
+        if t >= t_end:
+            break
+        try:
+            t_stop = next(bp_iter)
+        except StopIteration:
+            t_stop = t_end
+        c._t_right = t_stop
+        if fr:
+            y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
+            for (name, old, new) in changes:
+                events.append(Event(t, name, old, new))
+                guard.record(t, name)
+            modes = new_modes
+        else:
+            x, v, a, lam, z = c.unpack(y, yp)
+            y, yp = c.assemble_y(t, x, v, z, modes)
+        rec.add(t, y, yp, modes)
+    stats.wall_time = time.perf_counter() - t0
+    stats.events = len(events)
+    stats.steps = stats.extra.get("steps", 0)
+    from ..compile.outputs import Trajectory
+    T, Y, YP, L, MO = rec.arrays()
+    return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)

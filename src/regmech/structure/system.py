@@ -1,0 +1,283 @@
+"""Assemble the equation structure of a regular mechanical system.
+
+Coordinates ``x`` are the positions of the non-ground nodes (masses and
+driven points). The flattened equations are
+
+* kinematics ``x_k' = v_k`` and motion ``m_k a_k + (S^T tau)_k + (G^T lam)_k = 0``
+  for each coordinate (``a_k = v_k'``);
+* compliant device rows ``tau_r = law(e_r, e_r', ...)`` with ``e = S x + e0``;
+* constraint rows ``G_r x + e0_r = g_r(t)`` (rigid devices, Position sources)
+  or ``G_r v = g_r(t)`` (Speed sources);
+* friction rows with a mode (acceleration level when stuck).
+
+Pantelides' algorithm on this incidence decides how often each constraint
+row is differentiated (position rows twice, speed rows once); the dummy
+derivative method then picks, for each differentiated set, coordinates whose
+position/velocity/acceleration become algebraic (``dummy_x``, ``dummy_v``),
+preferring coordinates without fixed start values. The result is an index-1
+DAE (assembled numerically in ``compile``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+
+from ..component import Device
+from ..errors import ModelError, StructureError
+from .pantelides import pantelides, structural_matching
+from .regularity import check_model
+from .topology import Node
+
+
+@dataclass(eq=False)
+class Row:
+    """One row of one device: ``e = coef . x + offset``."""
+
+    device: Device
+    index: int                  # row index within the device
+    cols: np.ndarray            # coordinate indices
+    coefs: np.ndarray           # coefficients
+    offset: float               # contribution of ground positions
+
+
+@dataclass
+class MechanicalStructure:
+    model: object
+    nodes: list[Node]
+    coord_node: list[Node]                  # node of each coordinate
+    node_coord: dict[int, int | None]       # node index -> coordinate (None: ground)
+    mass: np.ndarray
+    coord_names: list[str]
+    start_pos: np.ndarray                   # NaN where not fixed
+    start_vel: np.ndarray
+    devices: list[Device]
+    rows: dict[str, list[Row]]              # device name -> rows
+    compliant: list[Row] = field(default_factory=list)
+    position: list[Row] = field(default_factory=list)   # level-2 constraints (rigid + Position)
+    speed: list[Row] = field(default_factory=list)      # level-1 constraints (Speed)
+    friction: list[Row] = field(default_factory=list)
+    dummy_x: np.ndarray = None
+    dummy_v: np.ndarray = None
+    levels: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.mass)
+
+    def matrix(self, rows: list[Row]) -> sp.csr_matrix:
+        """Sparse matrix of the given rows over the coordinates."""
+        if not rows:
+            return sp.csr_matrix((0, self.n))
+        ri = np.concatenate([np.full(len(r.cols), k) for k, r in enumerate(rows)])
+        ci = np.concatenate([r.cols for r in rows])
+        vals = np.concatenate([r.coefs for r in rows])
+        return sp.csr_matrix((vals, (ri.astype(int), ci.astype(int))), shape=(len(rows), self.n))
+
+    def offsets(self, rows: list[Row]) -> np.ndarray:
+        return np.array([r.offset for r in rows], dtype=float)
+
+
+def _device_label(row: Row) -> str:
+    return f"{type(row.device).__name__} '{row.device.name}'"
+
+
+def _coordinates(nodes: list[Node]):
+    coord_node, node_coord, mass, names, p0, v0 = [], {}, [], [], [], []
+    for node in nodes:
+        if node.grounded:
+            node_coord[node.index] = None
+            continue
+        k = len(coord_node)
+        node_coord[node.index] = k
+        coord_node.append(node)
+        mass.append(sum(b.mass for b in node.bodies))
+        names.append(node.bodies[0].name if node.bodies else node.label())
+        fixed = [[], []]
+        for b in node.bodies:
+            for j, val in enumerate(b.start):
+                if val is not None:
+                    fixed[j].append((b, val))
+        for j, store in enumerate((p0, v0)):
+            vals = fixed[j]
+            if vals and any(abs(v - vals[0][1]) > 1e-12 * max(1.0, abs(vals[0][1])) for _, v in vals):
+                what = ("position", "velocity")[j]
+                raise ModelError(
+                    "rigidly joined masses " + ", ".join(f"'{b.name}'" for b, _ in vals) +
+                    f" have different fixed start {what}s " + ", ".join(f"{v:g}" for _, v in vals) +
+                    "; give the start value on one of them only")
+            store.append(vals[0][1] if vals else np.nan)
+    return coord_node, node_coord, np.array(mass, dtype=float), names, np.array(p0, float), np.array(v0, float)
+
+
+def _device_rows(devices, node_of, node_coord, n) -> dict[str, list[Row]]:
+    out: dict[str, list[Row]] = {}
+    for dev in devices:
+        rows = []
+        spec = dev.rows()
+        for r, coef_map in enumerate(spec):
+            acc: dict[int, float] = {}
+            offset = 0.0
+            for fname, c in coef_map.items():
+                fl = dev.get_flange(fname)
+                node = node_of[fl]
+                k = node_coord[node.index]
+                if k is None:
+                    offset += c * node.ground_position
+                else:
+                    acc[k] = acc.get(k, 0.0) + float(c)
+            cols = np.array(sorted(k for k, c in acc.items() if c != 0.0), dtype=int)
+            rows.append(Row(dev, r, cols, np.array([acc[k] for k in cols], dtype=float), offset))
+        out[dev.name] = rows
+    return out
+
+
+def _levels(st: MechanicalStructure) -> dict:
+    """Pantelides on the incidence of the mechanical equations."""
+    eqs: dict = {}
+    derivative = {}
+    for k in range(st.n):
+        derivative[("x", k)] = ("dx", k)
+        derivative[("v", k)] = ("dv", k)
+    lam_of = {}
+    cons = st.position + st.speed + st.friction
+    for j, row in enumerate(cons):
+        lam_of[j] = ("lam", j)
+    touching: dict[int, list] = {k: [] for k in range(st.n)}
+    for j, row in enumerate(cons):
+        for k in row.cols:
+            touching[int(k)].append(("lam", j))
+    for k in range(st.n):
+        eqs[("kin", k)] = {("dx", k), ("v", k)}
+        eqs[("motion", k)] = {("dv", k), ("x", k), ("v", k), *touching[k]}
+    for j, row in enumerate(cons):
+        if row in st.speed:
+            eqs[("con", j)] = {("v", int(k)) for k in row.cols}
+        elif row in st.friction:
+            eqs[("con", j)] = {("dv", int(k)) for k in row.cols} | {("lam", j)}
+        else:
+            eqs[("con", j)] = {("x", int(k)) for k in row.cols}
+    # structural nonsingularity of the original system (all derivatives as unknowns)
+    # (Pantelides needs every equation matchable when all derivatives count as unknowns)
+    match, un_eq, un_var = structural_matching(eqs)
+    if un_eq:
+        bad_rows = [cons[e[1]] for e in un_eq if e[0] == "con"]
+        names = sorted({_device_label(r) for r in bad_rows})
+        if names:
+            raise StructureError(
+                "structurally singular model: the constraint(s) of " + ", ".join(names) +
+                " involve no free mass (they act only on the ground or on points fixed by other constraints); "
+                "remove the redundant device or connect it to a mass")
+        raise StructureError(f"structurally singular model: equations {un_eq} cannot be matched to unknowns")
+    counts = pantelides(eqs, derivative)
+    return {j: counts[("con", j)] for j in range(len(cons))}
+
+
+def _select_dummies(G: sp.csr_matrix, prefer_state: np.ndarray, rows: list[Row], exclude=()) -> np.ndarray:
+    """Pick one coordinate per constraint row (a nonsingular square block of G).
+
+    Coordinates with fixed start values (``prefer_state``) are kept as states
+    when possible. Raises StructureError naming the devices of redundant or
+    conflicting constraints.
+    """
+    m, n = G.shape
+    if m == 0:
+        return np.zeros(0, dtype=int)
+    G = G.tocsr().copy()
+    if len(exclude):
+        mask = np.ones(n)
+        mask[list(exclude)] = 0.0
+        G = sp.csr_matrix(G @ sp.diags(mask))
+        G.eliminate_zeros()
+    W = G.copy().astype(float)
+    W.data = 1.0 + 9.0 * prefer_state[W.indices] + 1e-9 * W.indices   # small tie-break: stable choice
+    try:
+        match = min_weight_full_bipartite_matching(W)
+    except ValueError:
+        match = None
+    if match is not None:
+        ri, ci = match
+        cols = np.empty(m, dtype=int)
+        cols[np.asarray(ri)] = np.asarray(ci)
+        block = G[:, cols].tocsc()
+        try:
+            lu = sp.linalg.splu(block)
+            diag = np.abs(lu.U.diagonal())
+            if diag.min() > 1e-12 * max(1.0, diag.max()):
+                return cols
+        except RuntimeError:
+            pass
+    _raise_redundant(G, rows)
+
+
+def _raise_redundant(G: sp.csr_matrix, rows: list[Row]):
+    import scipy.linalg as la
+    A = G.toarray()
+    if A.shape[0] > 4000:
+        raise StructureError("constraints are redundant or conflicting (rank-deficient); devices involved: " +
+                             ", ".join(sorted({_device_label(r) for r in rows})[:20]))
+    # rows that are combinations of others: pivoted QR of A^T orders rows by independence
+    q, r, piv = la.qr(A.T, pivoting=True, mode="economic")
+    d = np.abs(np.diag(r))
+    tol = 1e-10 * (d.max() if d.size else 1.0)
+    rank = int(np.sum(d > tol))
+    dependent = piv[rank:]
+    involved = set(dependent)
+    for j in dependent:
+        # the independent rows that explain the dependent one
+        coeff = la.lstsq(A[piv[:rank]].T, A[j])[0]
+        involved |= {int(piv[i]) for i in np.nonzero(np.abs(coeff) > 1e-9)[0]}
+    names = sorted({_device_label(rows[i]) for i in involved})
+    raise StructureError(
+        "redundant or conflicting rigid constraints (over-determined motion): " + ", ".join(names) +
+        " fix the same motion more than once (e.g. two rigid links or gears in parallel, a closed loop of gears, "
+        "or a motion source on a rigidly held mass). Fix: remove one of them, or make one compliant (a Shaft with "
+        "finite stiffness).")
+
+
+def build_structure(model) -> MechanicalStructure:
+    report = check_model(model)
+    nodes = report.nodes
+    node_of = {fl: nd for nd in nodes for fl in nd.flanges}
+    coord_node, node_coord, mass, names, p0, v0 = _coordinates(nodes)
+    devices = [c for c in model.components.values() if isinstance(c, Device)]
+    rows = _device_rows(devices, node_of, node_coord, len(mass))
+    st = MechanicalStructure(model=model, nodes=nodes, coord_node=coord_node, node_coord=node_coord,
+                             mass=mass, coord_names=names, start_pos=p0, start_vel=v0,
+                             devices=devices, rows=rows)
+    for dev in devices:
+        kind = dev.device_kind()
+        target = {"compliant": st.compliant, "rigid": st.position, "position": st.position,
+                  "speed": st.speed, "friction": st.friction}.get(kind)
+        if target is None:
+            raise ModelError(f"{type(dev).__name__} '{dev.name}': unknown device kind {kind!r}")
+        target.extend(rows[dev.name])
+    for row in st.position + st.speed:
+        if len(row.cols) == 0:
+            raise StructureError(
+                f"{_device_label(row)} constrains only points fixed to the ground; it is redundant "
+                f"(remove it) or one of its flanges should go to a mass")
+    st.levels = _levels(st)
+    npos = len(st.position)
+    for j, row in enumerate(st.position):
+        if st.levels[j] != 2:
+            raise StructureError(f"{_device_label(row)}: expected a position-level constraint (2 differentiations), "
+                                 f"Pantelides found {st.levels[j]}")
+    for j, row in enumerate(st.speed):
+        if st.levels[npos + j] != 1:
+            raise StructureError(f"{_device_label(row)}: expected a velocity-level constraint, "
+                                 f"Pantelides found {st.levels[npos + j]}")
+    fixed_p = np.isfinite(p0).astype(float)
+    fixed_v = np.isfinite(v0).astype(float)
+    Gp = st.matrix(st.position)
+    st.dummy_x = np.sort(_select_dummies(Gp, fixed_p + 0.5 * fixed_v, st.position))
+    Gv = st.matrix(st.speed)
+    extra = _select_dummies(Gv, fixed_v, st.speed, exclude=st.dummy_x)
+    st.dummy_v = np.sort(np.concatenate([st.dummy_x, extra])).astype(int)
+    for k, node in enumerate(coord_node):
+        if mass[k] == 0.0 and k not in set(st.dummy_v.tolist()):
+            raise StructureError(f"the point {node.label()} has no mass and is not fully driven; insert a mass there")
+    return st
