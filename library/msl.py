@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import regmech as rm
-from regmech.components import Damper, Fixed, IdealGear, Inertia, Spring, Torque
+from regmech.components import Clutch, Damper, Fixed, IdealGear, Inertia, Spring, Torque
 from regmech.signals import Sine, Step
 
 
@@ -37,5 +37,26 @@ def first(amplitude: float = 10.0, freq_hz: float = 5.0, j_motor: float = 0.1, j
     return m
 
 
-def coupled_clutches(*args, **kwargs):  # defined in the stick/slip step
-    raise NotImplementedError
+def coupled_clutches(fn_max: float = 20.0, peak: float = 1.1, mu: float = 0.5, t2: float = 0.4,
+                     t3: float = 0.9, freq_hz: float = 5.0, amplitude: float = 10.0, w0: float = 10.0) -> rm.Model:
+    """MSL ``Rotational.Examples.CoupledClutches``: four inertias coupled by three clutches.
+
+    torque ``amplitude*sin(2 pi freq_hz t)`` -> J1 (J = 1, starts at phi = 0, w = ``w0``)
+    -> clutch1 -> J2 -> clutch2 -> J3 -> clutch3 -> J4 (all J = 1). Clutches: mu = ``mu``,
+    ``peak``, ``fn_max`` [N], cgeo = 1; normal forces: clutch1 ``cos(2 pi 0.2 t)`` (a sine with
+    phase pi/2), clutch2 a unit step at ``t2``, clutch3 a unit step at ``t3``. Simulate 1.5 s.
+    """
+    import math
+    m = rm.Model("CoupledClutches")
+    fixed = m.add(Fixed("fixed"))
+    torque = m.add(Torque("torque", tau=Sine(amplitude=amplitude, freq_hz=freq_hz)))
+    J = [m.add(Inertia("J1", J=1.0, phi0=0.0, w0=w0))] + [m.add(Inertia(f"J{k}", J=1.0)) for k in (2, 3, 4)]
+    signals = [Sine(amplitude=1.0, freq_hz=0.2, phase=math.pi / 2), Step(start_time=t2), Step(start_time=t3)]
+    clutches = [m.add(Clutch(f"clutch{k + 1}", mu=mu, peak=peak, cgeo=1.0, fn_max=fn_max, f_normalized=s))
+                for k, s in enumerate(signals)]
+    m.connect(torque.support, fixed.flange)
+    m.connect(torque.flange, J[0].flange_a)
+    for k, cl in enumerate(clutches):
+        m.connect(J[k].flange_b, cl.flange_a)
+        m.connect(cl.flange_b, J[k + 1].flange_a)
+    return m

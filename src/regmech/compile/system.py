@@ -64,9 +64,12 @@ class CompiledSystem:
         self._build_jacobian()
         self._kkt_cache: dict = {}
         self.friction = None
+        self.nw_friction = 0
         if st.friction:
             from ..components.friction import FrictionSet   # components sit above compile in the layers
             self.friction = FrictionSet(self, st.friction)
+            self.nw_friction = self.friction.add_pattern(self._pb, self.nw_kernel)
+            self.jac = self._pb.build()
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
 
     # ------------------------------------------------------------------ build
@@ -244,10 +247,9 @@ class CompiledSystem:
     def jacobian_data(self, t, y, yp, cj, modes=None):
         x, v, a, lam, z = self.unpack(y, yp)
         _, _, _, _, w = self.kernel_outputs(x, v, z, t)
-        data = self.jac.data(cj, w)
         if self.mf:
-            data += self.friction.jacobian_data(t, v, cj, modes)
-        return data
+            w = np.concatenate([w, self.friction.weights(t, v, cj, modes)])
+        return self.jac.data(cj, w)
 
     # ----------------------------------------------------- consistent values
     def _kkt(self, modes):
