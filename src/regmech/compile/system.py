@@ -343,7 +343,7 @@ class CompiledSystem:
                             for i in bad if i < len(rows_all)})
             fixed_names = [st.coord_names[k] for k in np.nonzero(fmask)[0]]
             raise StructureError(
-                f"inconsistent start {what}s: the fixed start values of {fixed_names} contradict the constraints of "
+                f"inconsistent start {'velocities' if what == 'velocity' else 'positions'}: the fixed start values of {fixed_names} contradict the constraints of "
                 f"{names}; give the start {what} on one mass of each rigidly joined group only (or none)")
         return out
 

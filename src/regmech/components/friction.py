@@ -296,7 +296,12 @@ class FrictionSet:
                 out[2 * j] = 1.0
             else:
                 out[2 * j] = m * w[j]
-            out[2 * j + 1] = -fn if m == FREE else fn
+            if m == FREE:
+                # a normal force of exactly zero is 'not yet engaged': a tiny positive value keeps
+                # IDA from deactivating a root function that is identically zero at the start
+                out[2 * j + 1] = -fn if fn != 0.0 else 1e-300
+            else:
+                out[2 * j + 1] = fn
         return out
 
     # -- mode logic -----------------------------------------------------------------
