@@ -4,15 +4,13 @@
 ``SCENES`` maps scene names to builder functions.
 """
 
-from .msl import coupled_clutches, first
+from .msl import coupled_clutches, first, one_way_clutch
 
 SCENES = {
     "first": first,
 }
 
-try:
-    SCENES["coupled_clutches"] = coupled_clutches
-except NameError:  # pragma: no cover
-    pass
+SCENES["coupled_clutches"] = coupled_clutches
+SCENES["one_way_clutch"] = one_way_clutch
 
-__all__ = ["SCENES", "first", "coupled_clutches"]
+__all__ = ["SCENES", "first", "coupled_clutches", "one_way_clutch"]

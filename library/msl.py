@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import regmech as rm
-from regmech.components import Clutch, Damper, Fixed, IdealGear, Inertia, Spring, Torque
-from regmech.signals import Sine, Step
+from regmech.components import Clutch, Damper, Fixed, IdealGear, Inertia, OneWayClutch, Spring, Torque
+from regmech.signals import Constant, Pulse, Sine, Step
 
 
 def first(amplitude: float = 10.0, freq_hz: float = 5.0, j_motor: float = 0.1, j_load: float = 2.0,
@@ -59,4 +59,29 @@ def coupled_clutches(fn_max: float = 20.0, peak: float = 1.1, mu: float = 0.5, t
     for k, cl in enumerate(clutches):
         m.connect(J[k].flange_b, cl.flange_a)
         m.connect(cl.flange_b, J[k + 1].flange_a)
+    return m
+
+
+def one_way_clutch(engaged: bool = True) -> rm.Model:
+    """MSL ``Rotational.Examples.OneWayClutch`` (``engaged=True``) and ``OneWayClutchDisengaged``.
+
+    torque -> inertiaIn (J = 1, starts at w = -0.5) -> one-way clutch (peak 25, fn_max 3 N)
+    -> inertiaOut (J = 1, at rest). Engaged: torque ``10 sin(2 pi 3 t)``, engagement pulses
+    (width 50 %, period 1.3 s, from 0.3 s). Disengaged: torque ``0.3 + 10 sin(2 pi 2 t)``,
+    engagement 0, and a constant load torque -0.3 N m on inertiaOut. Simulate 2 s.
+    """
+    m = rm.Model("OneWayClutch" if engaged else "OneWayClutchDisengaged")
+    torque = m.add(Torque("torque", tau=Sine(amplitude=10.0, freq_hz=3.0) if engaged
+                          else Sine(amplitude=10.0, freq_hz=2.0, offset=0.3)))
+    j_in = m.add(Inertia("inertiaIn", J=1.0, phi0=0.0, w0=-0.5))
+    owc = m.add(OneWayClutch("oneWayClutch", peak=25.0, fn_max=3.0,
+                             f_normalized=Pulse(amplitude=1.0, width=50.0, period=1.3, start_time=0.3)
+                             if engaged else Constant(0.0)))
+    j_out = m.add(Inertia("inertiaOut", J=1.0, phi0=0.0, w0=0.0))
+    m.connect(torque.flange, j_in.flange_a)
+    m.connect(j_in.flange_b, owc.flange_a)
+    m.connect(owc.flange_b, j_out.flange_a)
+    if not engaged:
+        load = m.add(Torque("torqueLoad", tau=-0.3))
+        m.connect(j_out.flange_b, load.flange)
     return m

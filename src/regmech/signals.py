@@ -16,6 +16,8 @@ Parameter names follow the Modelica Standard Library (Blocks.Sources):
   ``offset + [t >= start_time] * amplitude*sin(2*pi*freq_hz*(t - start_time) + phase)``
 * ``Table(points)``: linear interpolation of (t, value) pairs, held constant
   outside; a repeated time gives a jump.
+* ``Pulse(amplitude=1, width=50, period=1, start_time=0, offset=0)``: a
+  rectangular wave, ``width`` in percent of the period (MSL Pulse).
 
 Any callable ``f(t)`` is accepted where a signal is expected; it is wrapped
 in ``Function`` (no breakpoints known, derivatives by central differences).
@@ -31,7 +33,7 @@ import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["Signal", "Constant", "Step", "Ramp", "Sine", "Table", "Function", "as_signal"]
+__all__ = ["Signal", "Constant", "Step", "Ramp", "Sine", "Table", "Pulse", "Function", "as_signal"]
 
 
 def _finite(owner: str, name: str, value) -> float:
@@ -56,8 +58,9 @@ class Signal:
         """d^order s / dt^order at t (one-sided limit when ``left``)."""
         raise NotImplementedError
 
-    def breakpoints(self) -> tuple[float, ...]:
-        """Instants where the signal or one of its derivatives jumps."""
+    def breakpoints(self, t_start: float = -math.inf, t_end: float = math.inf) -> tuple[float, ...]:
+        """Instants where the signal or one of its derivatives jumps (periodic
+        signals list those in [t_start, t_end])."""
         return ()
 
     def is_constant_zero(self) -> bool:
@@ -103,7 +106,7 @@ class Step(Signal):
     def derivative(self, t, order=1, left=False):
         return 0.0
 
-    def breakpoints(self):
+    def breakpoints(self, t_start=-math.inf, t_end=math.inf):
         return (self.start_time,)
 
     def is_constant_zero(self):
@@ -139,7 +142,7 @@ class Ramp(Signal):
             return self.height / self.duration
         return 0.0
 
-    def breakpoints(self):
+    def breakpoints(self, t_start=-math.inf, t_end=math.inf):
         return (self.start_time, self.start_time + self.duration)
 
 
@@ -170,7 +173,7 @@ class Sine(Signal):
         arg = w * (t - self.start_time) + self.phase + order * math.pi / 2.0
         return self.amplitude * w**order * math.sin(arg)
 
-    def breakpoints(self):
+    def breakpoints(self, t_start=-math.inf, t_end=math.inf):
         return (self.start_time,)
 
     def is_constant_zero(self):
@@ -223,7 +226,7 @@ class Table(Signal):
             return 0.0
         return float((self._v[k + 1] - self._v[k]) / (self._t[k + 1] - self._t[k]))
 
-    def breakpoints(self):
+    def breakpoints(self, t_start=-math.inf, t_end=math.inf):
         return tuple(sorted(set(float(x) for x in self._t)))
 
     def is_constant_zero(self):
@@ -231,6 +234,53 @@ class Table(Signal):
 
     def __repr__(self):
         return f"Table({self.points.tolist()!r})"
+
+
+class Pulse(Signal):
+    """Rectangular pulses (MSL Pulse): ``offset + amplitude`` during the first ``width``
+    percent of each ``period`` after ``start_time``, ``offset`` otherwise."""
+
+    def __init__(self, amplitude: float = 1.0, width: float = 50.0, period: float = 1.0,
+                 start_time: float = 0.0, offset: float = 0.0):
+        self.amplitude = _finite("Pulse", "amplitude", amplitude)
+        self.width = _finite("Pulse", "width", width)
+        self.period = _finite("Pulse", "period", period)
+        self.start_time = _finite("Pulse", "start_time", start_time)
+        self.offset = _finite("Pulse", "offset", offset)
+        if not 0 < self.width <= 100:
+            raise ParameterError(f"Pulse: parameter 'width' must be in (0, 100] percent, got {width!r}")
+        if self.period <= 0:
+            raise ParameterError(f"Pulse: parameter 'period' must be > 0, got {period!r}")
+
+    def value(self, t, left=False):
+        if t < self.start_time or (left and t == self.start_time):
+            return self.offset
+        phase = (t - self.start_time) % self.period
+        on_time = self.width / 100.0 * self.period
+        if left and phase == 0.0:
+            phase = self.period          # the limit from the left of a period start
+        on = phase <= on_time if left else phase < on_time
+        return self.offset + (self.amplitude if on else 0.0)
+
+    def derivative(self, t, order=1, left=False):
+        return 0.0
+
+    def breakpoints(self, t_start=-math.inf, t_end=math.inf):
+        if not math.isfinite(t_end):
+            raise ParameterError("Pulse.breakpoints needs a finite time range")
+        pts = []
+        k = max(0, int(math.floor((t_start - self.start_time) / self.period)))
+        on_time = self.width / 100.0 * self.period
+        while True:
+            t0 = self.start_time + k * self.period
+            if t0 > t_end:
+                break
+            pts += [t0, t0 + on_time]
+            k += 1
+        return tuple(p for p in pts if t_start <= p <= t_end)
+
+    def is_constant_zero(self):
+        return self.offset == 0.0 and self.amplitude == 0.0
 
 
 class Function(Signal):
@@ -262,7 +312,7 @@ class Function(Signal):
             return (self.value(t + h) - 2 * self.value(t) + self.value(t - h)) / (h * h)
         return 0.0
 
-    def breakpoints(self):
+    def breakpoints(self, t_start=-math.inf, t_end=math.inf):
         return self._bp
 
 

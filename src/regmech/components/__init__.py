@@ -1,7 +1,7 @@
 """Component classes (names and parameters follow the Modelica Standard Library)."""
 
 from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
-from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice
+from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, OneWayClutch
 from .gears import IdealGear
 from .inertial import Fixed, Inertia, Mass
 from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
@@ -10,6 +10,6 @@ __all__ = [
     "Fixed", "Inertia", "Mass",
     "Spring", "Damper", "SpringDamper", "Shaft", "TwoFlangeCompliant",
     "IdealGear",
-    "Clutch", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
+    "Clutch", "OneWayClutch", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
 ]

@@ -50,6 +50,7 @@ class FrictionDevice(Device):
     """Base class: subclasses define ``kinetic(w_abs, t, left)`` and ``engaged``."""
 
     kind = "friction"
+    one_way = False   # True: only w_rel >= 0 (freewheel); no Backward mode
 
     def kinetic(self, w_abs: float, t: float, left: bool = False) -> tuple[float, float]:
         """Kinetic capacity at relative speed ``w_abs`` >= 0 and its derivative d/dw."""
@@ -115,6 +116,25 @@ class Clutch(_MuMixin, FrictionDevice):
         fn = max(self.normal_force(t, left), 0.0)
         mu, dmu = self._mu(w_abs)
         return mu * self.cgeo * fn, dmu * self.cgeo * fn
+
+
+class OneWayClutch(Clutch):
+    """One-way clutch (MSL OneWayClutch): a freewheel in parallel with a clutch, one
+    constraint torque only. ``w_rel = w_b - w_a >= 0`` always: when ``w_rel`` reaches 0
+    the freewheel locks (Stuck) and holds any negative torque; it releases forward when
+    the holding torque exceeds ``peak * tau0`` (engaged) or a tiny threshold
+    ``1e-4 * mu(0) * cgeo * fn_max`` (disengaged). Engaged (f_normalized > 0) and
+    sliding, it transmits ``mu(w_rel) cgeo fn``; disengaged and sliding, nothing (Free).
+    Start with ``w_rel >= 0``."""
+
+    one_way = True
+    EPS0 = 1e-4
+
+    def capacities(self, t, left=False):
+        tau0, tau0_max = super().capacities(t, left)
+        if self.normal_force(t, left) <= 0:
+            return 0.0, self.EPS0 * self._mu(0.0)[0] * self.cgeo * self.fn_max
+        return tau0, max(self.peak, 1.0 + self.EPS0) * tau0
 
 
 class Brake(Clutch):
@@ -203,6 +223,7 @@ class FrictionSet:
         self.n_events = 2 * self.mf
         self.G = compiled.Gf
         self.offset = compiled.mp + compiled.mv   # first friction multiplier in lam
+        self.engaged = np.ones(self.mf, bool)      # engagement at the start of the current segment
 
     # -- helpers --------------------------------------------------------------
     def _left(self, t):
@@ -291,12 +312,13 @@ class FrictionSet:
             m = modes[j]
             fn = dev.normal_force(t, left)
             if m == STUCK:
-                out[2 * j] = dev.capacities(t, left)[1] - abs(lam[j])
+                hold = lam[j] if dev.one_way else abs(lam[j])     # a freewheel holds any negative torque
+                out[2 * j] = dev.capacities(t, left)[1] - hold
             elif m == FREE:
-                out[2 * j] = 1.0
+                out[2 * j] = w[j] if dev.one_way else 1.0         # a freewheeling one-way clutch locks at 0
             else:
                 out[2 * j] = m * w[j]
-            if m == FREE:
+            if not self.engaged[j]:
                 # a normal force of exactly zero is 'not yet engaged': a tiny positive value keeps
                 # IDA from deactivating a root function that is identically zero at the start
                 out[2 * j + 1] = -fn if fn != 0.0 else 1e-300
@@ -322,6 +344,10 @@ class FrictionSet:
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
             engaged = dev.normal_force(t, left) > 0
+            if dev.one_way:
+                new[j] = self._one_way_step(dev, j, old[j], engaged, w[j], lam[self.offset + j],
+                                            crossed[2 * j] != 0, initial, scale, t)
+                continue
             if not engaged:
                 new[j] = FREE
             elif initial or old[j] == FREE:
@@ -343,9 +369,9 @@ class FrictionSet:
                     continue
                 tau0, tau0_max = dev.capacities(t, left)
                 if lam_f[j] > tau0_max * (1 + 1e-12):
-                    new[j] = FORWARD
+                    new[j] = FORWARD if (not dev.one_way or dev.normal_force(t, left) > 0) else FREE
                     changed = True
-                elif lam_f[j] < -tau0_max * (1 + 1e-12):
+                elif lam_f[j] < -tau0_max * (1 + 1e-12) and not dev.one_way:
                     new[j] = BACKWARD
                     changed = True
                 if changed:
@@ -356,9 +382,26 @@ class FrictionSet:
             raise SimulationError(f"stick/slip logic did not settle at t={t:.9g} for "
                                   f"{[d.name for d in self.devices]}")
         y, yp = c.assemble_y(t, x, v, z, new)
+        self.engaged = np.array([d.normal_force(t, False) > 0 for d in self.devices])
         changes = [(self.devices[j].name, int(old[j]), int(new[j])) for j in range(self.mf)
                    if old[j] != new[j] and not initial]
         return y, yp, new, changes
+
+    @staticmethod
+    def _one_way_step(dev, j, old, engaged, w, lam, crossed, initial, scale, t):
+        """First step of the mode logic for a one-way clutch (no Backward mode)."""
+        slide = FORWARD if engaged else FREE
+        if initial:
+            if w < -scale:
+                raise SimulationError(
+                    f"OneWayClutch '{dev.name}' starts with w_rel = {w:.6g} < 0, which a freewheel cannot "
+                    f"have; give start speeds with w(flange_b) >= w(flange_a)")
+            return slide if w > scale else STUCK
+        if old == STUCK:
+            return (FORWARD if engaged else FREE) if crossed else STUCK
+        if crossed or abs(w) <= scale:
+            return STUCK
+        return slide
 
     def _lock_velocities(self, t, x, v, new, old):
         """Make w_rel exactly zero for devices that are (or were) stuck: a mass-weighted

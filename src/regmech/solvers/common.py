@@ -38,7 +38,7 @@ def signal_breakpoints(model, t_start, t_end):
     for comp in model.components.values():
         for val in comp._values.values():
             if isinstance(val, Signal):
-                pts.update(b for b in val.breakpoints() if t_start < b < t_end)
+                pts.update(b for b in val.breakpoints(t_start, t_end) if t_start < b < t_end)
     return sorted(pts)
 
 

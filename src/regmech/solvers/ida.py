@@ -96,10 +96,9 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     c._t_right = bps[0] if bps else np.inf
     stats = Stats(solver="ida", compile_time=compile_time)
     if fr:
-        y, yp, modes, evs = fr.settle(t_start, None, modes, initial=True)
+        y, yp, modes, _ = fr.settle(t_start, None, modes, initial=True)
     else:
         y, yp = c.initial_y(t_start, modes)
-        evs = []
     events: list[Event] = []
     rec = Recorder(c.mf)
     rec.add(t_start, y, yp, modes)
@@ -107,41 +106,15 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     bp_iter = iter(bps + [t_end])
     t_stop = next(bp_iter)
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
+    opts = (rtol, atol, linsolver, max_step, max_order)
     while t < t_end:
         c._t_right = t_stop
-        with_events = bool(fr) and fr.n_events > 0
-        solver = _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events)
-        inner = grid[(grid > t) & (grid < t_stop)]
-        tspan = np.concatenate([[t], inner, [t_stop]])
-        record = np.ones(len(tspan), bool)
-        if len(tspan) == 2:
-            tspan = np.array([t, 0.5 * (t + t_stop), t_stop])
-            record = np.array([True, False, True])
-        try:
-            sol = solver.solve(tspan, y, yp)
-        except (RuntimeError, ValueError) as exc:
-            raise SimulationError(f"IDA failed near t={t:.6g} in model '{model.name}': {exc}; components most "
-                                  f"involved: {_blame(c, y, yp)}") from exc
-        stats.segments += 1
-        stats.rhs_calls += int(getattr(sol, "nfev", 0) or 0)
-        stats.jac_calls += int(getattr(sol, "njev", 0) or 0)
-        if sol.status < 0:
-            last_y = sol.y[-1] if len(sol.y) else y
-            last_yp = sol.yp[-1] if len(sol.yp) else yp
-            t_fail = sol.t[-1] if len(sol.t) else t
-            raise SimulationError(
-                f"IDA failed at t={t_fail:.6g} in model '{model.name}': {sol.message}; components most involved: "
-                f"{_blame(c, last_y, last_yp)}. Try a tighter rtol, check parameters (very stiff links or tiny "
-                f"masses) or use rm.Scene to reduce the model")
-        n_rows = len(sol.t)
-        for k in range(1, n_rows):
-            tk = sol.t[k]
-            if sol.status == 2 and k == n_rows - 1:
-                break
-            if k < len(record) and not record[k]:
-                continue
-            rec.add(tk, sol.y[k], sol.yp[k], modes, left=(tk >= t_stop))
-        if sol.status == 2:
+        if t_stop - t <= 1e-13 * max(1.0, abs(t)):
+            # an event landed on a breakpoint (to round-off): nothing to integrate
+            sol = None
+        else:
+            sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec)
+        if sol is not None and sol.status == 2:
             t_ev = float(sol.t_events[-1])
             y_ev, yp_ev = np.array(sol.y_events[-1]), np.array(sol.yp_events[-1])
             rec.add(t_ev, y_ev, yp_ev, modes)
@@ -155,8 +128,9 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
             if len(events) > max_events:
                 raise SimulationError(f"more than {max_events} mode changes; raise max_events or simplify the model")
             continue
+        if sol is not None:
+            y, yp = np.array(sol.y[-1]), np.array(sol.yp[-1])
         # reached t_stop: a time event (signal breakpoint) or the end
-        y, yp = np.array(sol.y[-1]), np.array(sol.yp[-1])
         t = t_stop
         if t >= t_end:
             break
@@ -177,7 +151,47 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
         rec.add(t, y, yp, modes)
     stats.wall_time = time.perf_counter() - t0
     stats.events = len(events)
-    stats.steps = stats.extra.get("steps", 0)
     from ..compile.outputs import Trajectory
     T, Y, YP, L, MO = rec.arrays()
     return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
+
+
+def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
+    """One IDA run from t to t_stop (or to the first mode event); records the output rows.
+
+    A fresh solver per segment: scikit-sundae's event bookkeeping lives on the
+    events function and accumulates across ``solve`` calls.
+    """
+    with_events = bool(c.friction) and c.friction.n_events > 0
+    solver = _make_solver(c, modes, *opts, with_events)
+    tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end
+    inner = grid[(grid > t + tol) & (grid < t_stop - tol)]
+    tspan = np.concatenate([[t], inner, [t_stop]])
+    record = np.ones(len(tspan), bool)
+    if len(tspan) == 2:       # two times would make IDA return every internal step
+        tspan = np.array([t, 0.5 * (t + t_stop), t_stop])
+        record = np.array([True, False, True])
+    try:
+        sol = solver.solve(tspan, y, yp)
+    except (RuntimeError, ValueError, KeyError) as exc:
+        raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "
+                              f"involved: {_blame(c, y, yp)}") from exc
+    stats.segments += 1
+    stats.rhs_calls += int(getattr(sol, "nfev", 0) or 0)
+    stats.jac_calls += int(getattr(sol, "njev", 0) or 0)
+    if sol.status < 0:
+        last_y = sol.y[-1] if len(sol.y) else y
+        last_yp = sol.yp[-1] if len(sol.yp) else yp
+        t_fail = sol.t[-1] if len(sol.t) else t
+        raise SimulationError(
+            f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}; components most involved: "
+            f"{_blame(c, last_y, last_yp)}. Try a tighter rtol, check parameters (very stiff links or tiny "
+            f"masses) or use rm.Scene to reduce the model")
+    n_rows = len(sol.t)
+    for k in range(1, n_rows):
+        if sol.status == 2 and k == n_rows - 1:
+            break                 # the event row is recorded by the caller, before and after settling
+        if k < len(record) and not record[k]:
+            continue
+        rec.add(sol.t[k], sol.y[k], sol.yp[k], modes, left=(sol.t[k] >= t_stop))
+    return sol
