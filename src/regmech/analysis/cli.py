@@ -1,0 +1,92 @@
+"""``regmech modes <scene> [--k N] [--out DIR]``: natural frequencies and mode shapes of a scene.
+
+Prints the undamped and damped natural frequencies and the mode-shape table
+(mode x mass); with ``--out`` writes ``modes.csv``, ``mode_shapes.csv``,
+``mode_shapes.png`` and, when the scene has an input (a Torque, Force,
+Position or Speed source), ``response.png``: the harmonic response of the
+mass speeds to a unit amplitude of the first input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="regmech modes",
+                                description="natural frequencies, damping and mode shapes of a ready-made scene")
+    p.add_argument("scene", help="scene name (regmech scenes lists them)")
+    p.add_argument("--k", type=int, default=None, help="number of lowest modes (default: all)")
+    p.add_argument("--out", default=None, help="folder for CSV tables and PNG plots")
+    p.add_argument("--t", type=float, default=0.0, help="time of the operating point [s] (default 0)")
+    p.add_argument("--mode", action="append", default=[], metavar="DEVICE=MODE",
+                   help="friction mode at the operating point, e.g. clutch1=Stuck (repeatable)")
+    p.add_argument("--fmax", type=float, default=None, help="upper frequency of the response plot [Hz]")
+    return p
+
+
+def modes_main(argv: list[str]) -> int:
+    """Entry point of ``regmech modes``; returns the exit status (0 ok, 2 error)."""
+    from ..errors import RegmechError
+    from ..library import SCENES
+    from .harmonic import harmonic_response
+    from .modal import modal
+
+    args = _parser().parse_args(argv)
+    builder = SCENES.get(args.scene)
+    if builder is None:
+        print(f"regmech modes: unknown scene '{args.scene}'; scenes: {', '.join(sorted(SCENES))}", file=sys.stderr)
+        return 2
+    try:
+        modes = dict(item.split("=", 1) for item in args.mode) if args.mode else None
+    except ValueError:
+        print("regmech modes: --mode takes DEVICE=MODE, e.g. clutch1=Stuck", file=sys.stderr)
+        return 2
+    try:
+        model = builder()
+        lin = model.linearize(t=args.t, modes=modes)
+        result = modal(lin, k=args.k)
+        print(f"{model.name}: {lin.n} degrees of freedom ({', '.join(lin.coords)}), "
+              f"inputs {lin.all_inputs or 'none'}")
+        print()
+        print(result)
+        if args.out:
+            out = Path(args.out)
+            out.mkdir(parents=True, exist_ok=True)
+            result.frequency_table().to_csv(out / "modes.csv")
+            result.table().to_csv(out / "mode_shapes.csv")
+            print(f"\ntables: {out / 'modes.csv'}, {out / 'mode_shapes.csv'}")
+            _plots(result, lin, out, args.fmax, harmonic_response)
+    except RegmechError as exc:
+        print(f"regmech modes: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _plots(result, lin, out: Path, fmax, harmonic_response) -> None:
+    from ..errors import RegmechError
+    from .plots import plot_mode_shapes
+    try:
+        plot_mode_shapes(result, path=out / "mode_shapes.png")
+    except RegmechError as exc:          # matplotlib missing
+        print(f"no plots: {exc}")
+        return
+    print(f"plot:   {out / 'mode_shapes.png'}")
+    if not lin.all_inputs:
+        print("no response plot: the scene has no input source")
+        return
+    f_el = result.frequencies_hz[~result.rigid]
+    top = fmax or (2.0 * f_el.max() if f_el.size else 10.0)
+    freqs = np.linspace(top / 1000.0, top, 800)
+    speeds = [f"{name}.{'w' if name + '.w' in lin.outputs() else 'v'}" for name in lin.mass_names][:8]
+    try:
+        resp = harmonic_response(lin, speeds, freqs, inputs=lin.all_inputs[0])
+    except RegmechError as exc:
+        print(f"no response plot: {exc}")
+        return
+    resp.plot(path=out / "response.png")
+    print(f"plot:   {out / 'response.png'} (mass speeds per unit {lin.all_inputs[0]})")
