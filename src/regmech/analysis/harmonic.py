@@ -21,6 +21,7 @@ Multi-harmonic excitation (an engine order spectrum) is the superposition of
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -87,7 +88,9 @@ def _solve(lin, omega, F):
             if d.min() > 1e-13 * d.max():
                 return lu.solve(F)
     else:
-        lu, piv = la.lu_factor(np.asarray(Z, complex), check_finite=True)
+        with warnings.catch_warnings():     # singularity is checked on the pivots below, with a clear error
+            warnings.simplefilter("ignore", la.LinAlgWarning)
+            lu, piv = la.lu_factor(np.asarray(Z, complex), check_finite=True)
         d = np.abs(np.diag(lu))
         if d.size == 0 or d.min() > 1e-13 * d.max():
             return la.lu_solve((lu, piv), F)
