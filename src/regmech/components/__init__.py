@@ -1,15 +1,20 @@
 """Component classes (names and parameters follow the Modelica Standard Library)."""
 
+from .backlash import Backlash, ElastoBacklash
 from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
 from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, OneWayClutch
 from .gears import IdealGear
+from .gearing import Differential, Planetary
 from .inertial import Fixed, Inertia, Mass
+from .powertrain import Engine, RoadLoad
 from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
 
 __all__ = [
     "Fixed", "Inertia", "Mass",
     "Spring", "Damper", "SpringDamper", "Shaft", "TwoFlangeCompliant",
-    "IdealGear",
+    "IdealGear", "Differential", "Planetary",
+    "Backlash", "ElastoBacklash",
+    "Engine", "RoadLoad",
     "Clutch", "OneWayClutch", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
 ]

@@ -1,0 +1,123 @@
+"""Backlash: an elastic link with a dead zone (gear play, coupling slack).
+
+``Backlash(c, b)`` is the dead-zone spring of SOURCES.md 004 (the excavator
+swing drive): no torque inside the play, a linear spring outside it.
+``ElastoBacklash(c, d, b)`` is MSL ``Rotational.Components.ElastoBacklash``:
+the same with a damper in parallel with the spring, the damping torque
+limited so that the contact torque neither jumps at the start of contact nor
+pulls (sticks) when the flanges separate.
+
+Both are one-row compliant devices with ``phi_rel = phi_b - phi_a`` and the
+transmitted torque ``tau = flange_b.tau = -flange_a.tau``. Pass
+``domain="translational"`` for the translational versions (``s_rel``, ``f``;
+then ``b`` is in m, ``c`` in N/m, ``d`` in N s/m).
+
+The laws are written with ``sympy.Piecewise``, so they are continuous but
+have a kink at contact (``|phi_rel - phi_rel0| = b/2``). IDA integrates the
+kink without locating it; at tight tolerances the error stays small (see
+``tests/validation/test_msl_backlash.py`` for the measured error against the
+MSL reference).
+"""
+
+from __future__ import annotations
+
+import sympy
+
+from ..component import Param
+from .elastic import TwoFlangeCompliant
+
+#: below this total backlash [rad or m] the play is ignored (MSL ``bEps``):
+#: a vanishing dead zone would only add kinks that do nothing
+B_EPS = 1e-10
+
+
+def _contact_spring(c, phi_diff, b_half):
+    """Spring torque ``tau_c``: zero inside the play, ``c * (penetration)`` outside it."""
+    return sympy.Piecewise((c * (phi_diff - b_half), phi_diff > b_half),
+                           (c * (phi_diff + b_half), phi_diff < -b_half),
+                           (0, True))
+
+
+class Backlash(TwoFlangeCompliant):
+    """Dead-zone spring (SOURCES.md 004)::
+
+        phi_diff = phi_rel - phi_rel0
+        tau = c * (phi_diff - b/2)   if phi_diff >  b/2
+              c * (phi_diff + b/2)   if phi_diff < -b/2
+              0                      otherwise
+
+    c [N m/rad] > 0, b [rad] >= 0 the *total* play (b/2 on each side, as in
+    MSL), phi_rel0 [rad] the centre of the play. Conservative: its potential
+    is ``c * penetration^2 / 2``.
+    """
+
+    c = Param(check="positive", unit="N m/rad", doc="stiffness in contact")
+    b = Param(0.0, check="nonnegative", unit="rad", doc="total backlash")
+    phi_rel0 = Param(0.0, unit="rad", doc="centre of the play")
+
+    def law(self, rel, rel_dot):
+        return _contact_spring(self.c, rel - self.phi_rel0, self.b / 2)
+
+    def potential(self, e):
+        tau_c = _contact_spring(self.c, e[0] - self.phi_rel0, self.b / 2)
+        return tau_c ** 2 / (2 * self.c)
+
+
+class ElastoBacklash(TwoFlangeCompliant):
+    """Backlash in series with a spring and damper in parallel (MSL ``ElastoBacklash``).
+
+    With ``phi_diff = phi_rel - phi_rel0``, ``tau_c`` the dead-zone spring
+    torque of ``Backlash`` and ``tau_d = d * w_rel``::
+
+        phi_diff > b/2 (contact, pushing forward):
+            tau = 0                  if tau_c + tau_d <= 0   (would pull: separated)
+                  tau_c + min(tau_c, tau_d)
+        phi_diff < -b/2: the mirror image (max instead of min, >= 0)
+        otherwise: tau = 0
+
+    Limiting the damping torque by the spring torque (|tau_d| <= |tau_c|)
+    makes the torque continuous at the start of contact (the spring torque
+    is zero there, so the damping torque is too) and forbids pulling
+    contact torques. With ``b <= 1e-10`` it is a plain spring-damper.
+
+    c [N m/rad] > 0, d [N m s/rad] >= 0, b [rad] >= 0 total backlash,
+    phi_rel0 [rad]. The potential is the spring's ``c * penetration^2 / 2``;
+    everything else the device absorbs is dissipated (never negative).
+
+    MSL replaces the characteristic by a monotone one during initialisation
+    (for inverse models); regmech takes the start values as given, so that
+    has no counterpart here.
+    """
+
+    c = Param(check="positive", unit="N m/rad", doc="stiffness in contact")
+    d = Param(check="nonnegative", unit="N m s/rad", doc="damping in contact")
+    b = Param(0.0, check="nonnegative", unit="rad", doc="total backlash")
+    phi_rel0 = Param(0.0, unit="rad", doc="centre of the play")
+
+    def law(self, rel, rel_dot):
+        phi_diff = rel - self.phi_rel0
+        b_half = self.b / 2
+        tau_d = self.d * rel_dot
+        # Each contact branch uses its own plain spring torque (not the
+        # Piecewise tau_c), so no condition contains a Piecewise; MSL's min/max
+        # are written out as branches, each smooth, so the class Jacobian is
+        # differentiated branch by branch.
+        tau_c = self.c * (phi_diff - b_half)
+        pushing = sympy.Piecewise((0, tau_c + tau_d <= 0), (2 * tau_c, tau_d >= tau_c), (tau_c + tau_d, True))
+        tau_c = self.c * (phi_diff + b_half)
+        pulling = sympy.Piecewise((0, tau_c + tau_d >= 0), (2 * tau_c, tau_d <= tau_c), (tau_c + tau_d, True))
+        return sympy.Piecewise((self.c * phi_diff + tau_d, self.b <= B_EPS),
+                               (pushing, phi_diff > b_half),
+                               (pulling, phi_diff < -b_half),
+                               (0, True))
+
+    def potential(self, e):
+        phi_diff = e[0] - self.phi_rel0
+        b_half = self.b / 2
+        return sympy.Piecewise((self.c * phi_diff ** 2 / 2, self.b <= B_EPS),
+                               (self.c * (phi_diff - b_half) ** 2 / 2, phi_diff > b_half),
+                               (self.c * (phi_diff + b_half) ** 2 / 2, phi_diff < -b_half),
+                               (0, True))
+
+
+__all__ = ["Backlash", "ElastoBacklash", "B_EPS"]
