@@ -6,7 +6,7 @@
 """
 
 from . import signals
-from .component import Body, Component, Device, Ground, Param
+from .component import Body, Component, Device, Ground, Param, Subsystem
 from .errors import (ChatteringError, ModelError, ParameterError, RegmechError, RegularityError,
                      RegularityWarning, SimulationError, StructureError, UnknownFlangeError)
 from .model import Model
@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Model", "Result", "Event", "Stats", "signals",
-    "Component", "Body", "Ground", "Device", "Param",
+    "Component", "Body", "Ground", "Device", "Param", "Subsystem",
     "RegmechError", "ParameterError", "ModelError", "UnknownFlangeError", "RegularityError",
     "StructureError", "SimulationError", "ChatteringError", "RegularityWarning",
 ]
@@ -27,4 +27,9 @@ def __getattr__(name):
     if name in ("analysis", "components", "solvers", "structure", "compile", "bench", "library"):
         import importlib
         return importlib.import_module(f".{name}", __name__)
+    if name in ("sweep", "latin_hypercube", "scatter", "grid"):
+        # regmech.sweep is a callable module (rm.sweep(...) runs a study), the helpers live in it
+        import importlib
+        module = importlib.import_module(".sweep", __name__)
+        return module if name == "sweep" else getattr(module, name)
     raise AttributeError(f"module 'regmech' has no attribute {name!r}")

@@ -181,11 +181,11 @@ class Component:
         flanges = self.__dict__.get("_flanges")
         if flanges is not None and attr in flanges:
             return flanges[attr]
-        if attr.startswith("flange") or attr in ("support", "carrier", "sun", "ring", "left", "right"):
+        if not attr.startswith("_"):
             raise UnknownFlangeError(
                 f"{type(self).__name__} '{self.__dict__.get('name', '?')}' has no flange '{attr}'; "
                 f"its flanges are {sorted(flanges or {})}")
-        raise AttributeError(f"{type(self).__name__!s} object has no attribute {attr!r}")
+        raise AttributeError(f"{type(self).__name__} object has no attribute {attr!r}")
 
     @property
     def flange_list(self) -> list[Flange]:
@@ -275,6 +275,44 @@ class Device(Component):
         return 0
 
 
+class Subsystem(Component):
+    """A reusable assembly of components with exposed flanges (a Modelica sub-model).
+
+    Subclasses declare ``Param`` attributes and implement ``build(self)``, in
+    which ``self.part(component)`` adds a part (named locally) and
+    ``self.link(a, b)`` connects two of its flanges; ``ports`` maps each
+    exposed flange name to ``"part.flange"``. Added to a model, the parts
+    become ``"<subsystem>.<part>"`` (so results read ``res["wheel.tyre.f"]``)
+    and the subsystem's flanges *are* the parts' flanges.
+    """
+
+    role = "subsystem"
+    ports: ClassVar[dict[str, str]] = {}
+
+    def __init__(self, name: str, **params):
+        super().__init__(name, **params)
+        self.parts: dict[str, Component] = {}
+        self.links: list[tuple] = []
+        self.build()
+        for port, target in self.ports.items():
+            pname, _, fname = target.partition(".")
+            if pname not in self.parts:
+                raise ParameterError(f"{type(self).__name__} '{name}': port '{port}' refers to unknown part '{pname}'")
+            self._flanges[port] = self.parts[pname].get_flange(fname)
+
+    def build(self) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def part(self, component: Component) -> Component:
+        if component.name in self.parts:
+            raise ParameterError(f"{type(self).__name__} '{self.name}': two parts named '{component.name}'")
+        self.parts[component.name] = component
+        return component
+
+    def link(self, a: Flange, b: Flange) -> None:
+        self.links.append((a, b))
+
+
 def bound_value(comp: Component, name: str):
     """Numeric value of a parameter or a Signal (callers evaluate signals)."""
     return comp._values[name]
@@ -289,5 +327,5 @@ def numeric_params(cls) -> list[str]:
             if p.check in ("real", "positive", "nonnegative", "nonzero")]
 
 
-__all__ = ["Param", "Component", "Body", "Ground", "Device", "REQUIRED", "Signal",
+__all__ = ["Param", "Component", "Body", "Ground", "Device", "Subsystem", "REQUIRED", "Signal",
            "ROTATIONAL", "TRANSLATIONAL"]

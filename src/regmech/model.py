@@ -13,7 +13,7 @@ from typing import Iterable
 
 import networkx as nx
 
-from .component import Component
+from .component import Component, Subsystem
 from .errors import ModelError, UnknownFlangeError
 from .ports import Flange
 
@@ -29,6 +29,7 @@ class Model:
     def __init__(self, name: str = "model"):
         self.name = name
         self.components: dict[str, Component] = {}
+        self.subsystems: dict[str, Subsystem] = {}
         self.graph = nx.Graph()
         self._compiled = None
 
@@ -42,9 +43,11 @@ class Model:
         if component.model is not None:
             raise ModelError(f"{type(component).__name__} '{component.name}' already belongs to model "
                              f"'{component.model.name}'; create a new instance for model '{self.name}'")
-        if component.name in self.components:
+        if component.name in self.components or component.name in self.subsystems:
             raise ModelError(f"Model '{self.name}' already has a component named '{component.name}'; "
                              f"give each component a unique name")
+        if isinstance(component, Subsystem):
+            return self._add_subsystem(component)
         component.model = self
         self.components[component.name] = component
         self.graph.add_node(component.name, kind="component", component=component)
@@ -54,15 +57,26 @@ class Model:
         self._invalidate()
         return component
 
+    def _add_subsystem(self, sub: Subsystem) -> Subsystem:
+        sub.model = self
+        self.subsystems[sub.name] = sub
+        for local, part in sub.parts.items():
+            part.name = f"{sub.name}.{local}"    # parts are named through their subsystem
+            self.add(part)
+        for a, b in sub.links:
+            self.connect(a, b)
+        return sub
+
     def add_all(self, components: Iterable[Component]) -> list[Component]:
         return [self.add(c) for c in components]
 
     def _resolve(self, flange) -> Flange:
         if isinstance(flange, str):
-            comp_name, _, fname = flange.partition(".")
-            if comp_name not in self.components:
+            comp_name, _, fname = flange.rpartition(".")
+            owner = self.components.get(comp_name) or self.subsystems.get(comp_name)
+            if owner is None:
                 raise ModelError(f"Model '{self.name}' has no component '{comp_name}' (in connect('{flange}'))")
-            flange = self.components[comp_name].get_flange(fname)
+            flange = owner.get_flange(fname)
         if not isinstance(flange, Flange):
             raise ModelError(f"connect() takes flanges such as J1.flange_a or 'J1.flange_a', got {flange!r}")
         owner = flange.component
@@ -84,13 +98,13 @@ class Model:
         self._invalidate()
 
     def __getitem__(self, name: str) -> Component:
-        try:
-            return self.components[name]
-        except KeyError:
-            raise ModelError(f"Model '{self.name}' has no component '{name}'") from None
+        comp = self.components.get(name) or self.subsystems.get(name)
+        if comp is None:
+            raise ModelError(f"Model '{self.name}' has no component '{name}'")
+        return comp
 
     def __contains__(self, name: str) -> bool:
-        return name in self.components
+        return name in self.components or name in self.subsystems
 
     def __iter__(self):
         return iter(self.components.values())

@@ -7,6 +7,7 @@ from .gears import IdealGear
 from .gearing import Differential, Planetary
 from .inertial import Fixed, Inertia, Mass
 from .powertrain import Engine, RoadLoad
+from .wheel import MagicFormulaTyre, MagicFormulaWheel, Rolling, Wheel
 from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
 
 __all__ = [
@@ -16,5 +17,6 @@ __all__ = [
     "Backlash", "ElastoBacklash",
     "Engine", "RoadLoad",
     "Clutch", "OneWayClutch", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
+    "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
 ]

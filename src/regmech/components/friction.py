@@ -339,6 +339,8 @@ class FrictionSet:
         old = np.array(modes, dtype=int)
         new = old.copy()
         w = self.w_rel(v)
+        arel = self.G @ a
+        lam_rate = yp0[c.ilam[self.offset:]]        # d lam/dt at the event (IDA's interpolant)
         scale = 1e-9 * max(1.0, float(np.abs(v).max(initial=0.0)))
         crossed = np.zeros(self.n_events) if crossed is None else np.asarray(crossed)
         # 1. engagement and the crossings that were found
@@ -352,13 +354,17 @@ class FrictionSet:
                 new[j] = FREE
             elif initial or old[j] == FREE:
                 new[j] = FORWARD if w[j] > 0 else BACKWARD if w[j] < 0 else STUCK
-            elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or abs(w[j]) <= scale):
+            elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
+                                                     (abs(w[j]) <= scale and w[j] * arel[j] < 0)):
+                # found by the root finder, or within round-off of zero and still approaching it
+                # (a device that has just broken away has w_rel ~ 0 too, but is leaving)
                 new[j] = STUCK
             elif old[j] == STUCK and crossed[2 * j] != 0:
                 # the root of tau0_max - |lam| was located (to round-off) on either side of zero:
                 # the crossing itself decides, so the restart is where the condition has flipped
                 new[j] = FORWARD if lam[self.offset + j] > 0 else BACKWARD
-        # 2. stuck devices: holding torques of the whole stuck set, break away if beyond tau0_max
+        # 2. stuck devices: holding torques of the whole stuck set from one KKT solve; every device
+        #    beyond its tau0_max breaks away at once (as in one Modelica event iteration), then repeat
         for _ in range(4 * self.mf + 4):
             v = self._lock_velocities(t, x, v, new, old)
             a, lam, dz = c.accelerations(t, x, v, z, new)
@@ -368,14 +374,16 @@ class FrictionSet:
                 if new[j] != STUCK:
                     continue
                 tau0, tau0_max = dev.capacities(t, left)
-                if lam_f[j] > tau0_max * (1 + 1e-12):
+                # a load within round-off of the capacity and still rising breaks away with the others
+                # (symmetric devices, e.g. two wheels on one open differential, reach it together)
+                tie = 1e-9 * tau0_max
+                if lam_f[j] > tau0_max * (1 + 1e-12) or (lam_f[j] > tau0_max - tie and lam_rate[j] > 0):
                     new[j] = FORWARD if (not dev.one_way or dev.normal_force(t, left) > 0) else FREE
                     changed = True
-                elif lam_f[j] < -tau0_max * (1 + 1e-12) and not dev.one_way:
+                elif (lam_f[j] < -tau0_max * (1 + 1e-12) or (lam_f[j] < -tau0_max + tie and lam_rate[j] < 0)) \
+                        and not dev.one_way:
                     new[j] = BACKWARD
                     changed = True
-                if changed:
-                    break   # one at a time: the holding torques of the others change
             if not changed:
                 break
         else:
