@@ -1,0 +1,533 @@
+"""Shared hybrid loop for the solvers that integrate the ODE form of a compiled model.
+
+The compiled system offers the ODE form ``u' = g(t, u)`` with
+``u = [x_K, v_K, z]`` (positions and velocities of the non-dummy coordinates,
+device states); ``g`` lifts ``u`` to all coordinates through the constraints
+and solves one sparse KKT system for the accelerations (cached per mode). A
+solver only supplies a *stepper* (``Stepper`` below): it advances ``u`` by
+one step, interpolates inside the last step and counts its work. This module
+does everything else, identically for every ODE-form solver:
+
+* segments: the run is cut at the signals' breakpoints (time events); on a
+  segment the signals are evaluated as left limits at its right end
+  (``c._t_right``), so a step never sees a jump;
+* output: values on the output grid, plus the breakpoint (twice: left and
+  right limit) and every mode change (twice: before and after);
+* stick/slip (``c.friction``, a ``FrictionSet``): after every step its event
+  functions are evaluated on the full unknowns; a downward crossing through
+  zero is located on the step's interpolant (``locate_crossing``), the mode
+  logic ``settle`` runs at the crossing and the stepper restarts there;
+* the structural sparsity pattern of ``dg/du`` and a column-grouped
+  finite-difference Jacobian (used by the implicit scipy methods and by the
+  convolution method's time constants).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..errors import SimulationError
+from ..result import Event, Result, Stats
+from .common import Recorder, check_times, output_grid, signal_breakpoints
+
+EPS = np.finfo(float).eps
+
+
+# ---------------------------------------------------------------------------- problem
+class OdeProblem:
+    """``u' = g(t, u)`` of a compiled system for the current modes, counting evaluations.
+
+    ``modes`` is changed in place of a new object after a mode change, so the
+    counters run over the whole simulation.
+    """
+
+    def __init__(self, compiled, modes):
+        self.c = compiled
+        self.modes = modes
+        self.size = compiled.ode_size()
+        self.nfev = 0       # right-hand side evaluations (including finite-difference ones)
+        self.njev = 0       # Jacobians built by ``jacobian``
+
+    def rhs(self, t, u):
+        self.nfev += 1
+        return self.c.ode_rhs(t, u, self.modes)
+
+    def jacobian(self, t, u, g=None):
+        """``dg/du`` (scipy CSC) by forward differences, one evaluation per column group."""
+        self.njev += 1
+        pat = ode_jacobian_pattern(self.c)
+        if g is None:
+            g = self.rhs(t, u)
+        return grouped_fd_jacobian(self.rhs, t, u, g, pat)
+
+
+# ------------------------------------------------------------- Jacobian structure
+_PATTERNS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _bool(m) -> sp.csr_matrix:
+    """0/1 pattern of a sparse or dense matrix (always a copy: the compiled matrices stay untouched)."""
+    m = sp.csr_matrix(m, dtype=float, copy=True)
+    m.data[:] = 1.0
+    m.eliminate_zeros()
+    return m
+
+
+def _lift_pattern(G, dummies, kept, n):
+    """Which kept coordinates each of the n coordinates depends on, through ``G x = g``.
+
+    Kept coordinates depend on themselves; a dummy ``x_D = G_D^-1 (g - G_K x_K)``
+    on the kept coordinates that its constraint block touches (computed
+    numerically: constant coefficients, so an exact zero is a true zero).
+    """
+    L = sp.lil_matrix((n, len(kept)))
+    L[kept, np.arange(len(kept))] = 1.0
+    if len(dummies):
+        GD = G[:, dummies].toarray()
+        GK = G[:, kept].toarray()
+        dep = np.linalg.solve(GD, GK)
+        rows, cols = np.nonzero(np.abs(dep) > 0)
+        L[np.asarray(dummies)[rows], cols] = 1.0
+    return _bool(L)
+
+
+def _coupling_pattern(G, n):
+    """Coordinates whose accelerations are coupled by the constraints ``G`` (block per rigid group)."""
+    if G.shape[0] == 0:
+        return sp.identity(n, format="csr")
+    adj = _bool(_bool(G).T @ _bool(G)) + sp.identity(n)
+    ncomp, label = connected_components(adj, directed=False)
+    members = [np.nonzero(label == k)[0] for k in range(ncomp)]
+    rows = np.concatenate([np.repeat(m, len(m)) for m in members])
+    cols = np.concatenate([np.tile(m, len(m)) for m in members])
+    return _bool(sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n)))
+
+
+def _device_patterns(c):
+    """Couplings inside each compliant device instance: rows<-rows, rows<-states, states<-rows, states<-states.
+
+    Over-approximated per instance (every output of an instance may depend on
+    every input of it), which only adds a few entries.
+    """
+    nr = c.Sc.shape[0]
+    rr, rz, zr, zz = ([], []), ([], []), ([], []), ([], [])
+    for g in c.groups:
+        for inst in range(g.n):
+            r = g.row_index[inst]
+            s = g.state_index[inst] if g.state_index.size else np.zeros(0, int)
+            for (acc, a, b) in ((rr, r, r), (rz, r, s), (zr, s, r), (zz, s, s)):
+                if len(a) and len(b):
+                    aa, bb = np.meshgrid(a, b, indexing="ij")
+                    acc[0].append(aa.ravel())
+                    acc[1].append(bb.ravel())
+
+    def mat(acc, shape):
+        if not acc[0]:
+            return sp.csr_matrix(shape)
+        i, j = np.concatenate(acc[0]), np.concatenate(acc[1])
+        return _bool(sp.csr_matrix((np.ones(len(i)), (i, j)), shape=shape))
+
+    return mat(rr, (nr, nr)), mat(rz, (nr, c.nz)), mat(zr, (c.nz, nr)), mat(zz, (c.nz, c.nz))
+
+
+def ode_jacobian_pattern(c) -> sp.csc_matrix:
+    """Structural nonzeros of ``dg/du`` for the ODE form (all modes at once).
+
+    ``a = P (-S^T tau(S x, S v, z) - G_f^T f_f(v))`` with ``P`` the
+    constrained inverse mass (dense per rigid group, friction rows included
+    so that one pattern serves every mode), ``x = L_x u_x``, ``v = L_v u_v``
+    (dummy coordinates from the constraints). Rows of ``u'``: ``x_K' = v_K``,
+    ``v_K' = a_K``, ``z' = h(S x, S v, z)``.
+    """
+    pat = _PATTERNS.get(c)
+    if pat is not None:
+        return pat
+    n = c.n
+    Lx = _lift_pattern(c.Gp, c.Dx, c.Kx, n)
+    Lv = _lift_pattern(c.Gpv, c.Dv, c.Kv, n)
+    P = _coupling_pattern(c.Gall, n)
+    S = _bool(c.Sc) if c.Sc.shape[0] else sp.csr_matrix((0, n))
+    Rrr, Rrz, Rzr, Rzz = _device_patterns(c)
+    PST = P @ S.T
+    Ax = PST @ Rrr @ S @ Lx
+    Av = PST @ Rrr @ S @ Lv
+    if c.mf:
+        Gf = _bool(c.Gf)
+        Av = Av + P @ Gf.T @ Gf @ Lv
+    Az = PST @ Rrz
+    nkx, nkv, nz = len(c.Kx), len(c.Kv), c.nz
+    blocks = [
+        [sp.csr_matrix((nkx, nkx)), Lv[c.Kx], sp.csr_matrix((nkx, nz))],
+        [Ax[c.Kv], Av[c.Kv], Az[c.Kv]],
+        [Rzr @ S @ Lx, Rzr @ S @ Lv, Rzz],
+    ]
+    pat = _bool(sp.bmat(blocks, format="csr")).tocsc()
+    pat.sort_indices()
+    _PATTERNS[c] = pat
+    return pat
+
+
+def column_groups(pattern: sp.csc_matrix) -> list[np.ndarray]:
+    """Greedy grouping of columns with disjoint row sets (one FD evaluation per group)."""
+    nrow, ncol = pattern.shape
+    used: list[np.ndarray] = []
+    members: list[list[int]] = []
+    for j in range(ncol):
+        rows = pattern.indices[pattern.indptr[j]:pattern.indptr[j + 1]]
+        for mask, mem in zip(used, members):
+            if not mask[rows].any():
+                mask[rows] = True
+                mem.append(j)
+                break
+        else:
+            mask = np.zeros(nrow, bool)
+            mask[rows] = True
+            used.append(mask)
+            members.append([j])
+    return [np.array(m, int) for m in members]
+
+
+_GROUPS: dict = {}
+
+
+def grouped_fd_jacobian(fun, t, u, g0, pattern: sp.csc_matrix) -> sp.csc_matrix:
+    """Forward-difference ``dg/du`` on a known sparsity pattern (Curtis-Powell-Reid grouping).
+
+    Step per column ``sqrt(eps) * max(1, |u_j|)``; entries outside the pattern are zero.
+    """
+    key = id(pattern)
+    groups = _GROUPS.get(key)
+    if groups is None or groups[0] is not pattern:
+        groups = _GROUPS[key] = (pattern, column_groups(pattern))
+    groups = groups[1]
+    delta = math.sqrt(EPS) * np.maximum(1.0, np.abs(u))
+    data = np.zeros(pattern.nnz)
+    indptr, indices = pattern.indptr, pattern.indices
+    for cols in groups:
+        du = np.zeros_like(u)
+        du[cols] = delta[cols]
+        dg = fun(t, u + du) - g0
+        for j in cols:
+            lo, hi = indptr[j], indptr[j + 1]
+            data[lo:hi] = dg[indices[lo:hi]] / delta[j]
+    return sp.csc_matrix((data, indices, indptr), shape=pattern.shape)
+
+
+# --------------------------------------------------------------------- steppers
+def hermite(t0, u0, g0, t1, u1, g1, tq):
+    """Cubic Hermite interpolation of u on [t0, t1] from values and slopes at both ends."""
+    h = t1 - t0
+    s = (tq - t0) / h
+    h00 = (1 + 2 * s) * (1 - s) ** 2
+    h10 = s * (1 - s) ** 2
+    h01 = s * s * (3 - 2 * s)
+    h11 = s * s * (s - 1)
+    return h00 * u0 + h10 * h * g0 + h01 * u1 + h11 * h * g1
+
+
+class KnotClock:
+    """Equal steps of at most ``h_max`` that land exactly on every knot (output instant) and on ``t_bound``.
+
+    Each knot interval of length L is cut into ``ceil(L / h_max)`` equal
+    steps; the last one ends on the knot itself (no round-off drift).
+    """
+
+    def __init__(self, t0, knots, t_bound, h_max):
+        self.knots = np.asarray(knots, float)
+        self.t_bound = float(t_bound)
+        self.h_max = float(h_max)
+        self._k = 0
+        self._n_left = 0
+        self._i = 0
+        self._t_from = self._target = float(t0)
+        self._h = 0.0
+
+    def next_step(self, t):
+        """(h, t_new) of the next step from t."""
+        if self._n_left == 0:
+            while self._k < len(self.knots) and self.knots[self._k] <= t:
+                self._k += 1
+            target = self.knots[self._k] if self._k < len(self.knots) else self.t_bound
+            span = target - t
+            n = max(1, math.ceil(span / self.h_max * (1 - 1e-12)))
+            self._t_from, self._target, self._h, self._n_left, self._i = t, target, span / n, n, 0
+        self._i += 1
+        self._n_left -= 1
+        t_new = self._target if self._n_left == 0 else self._t_from + self._i * self._h
+        return t_new - t, t_new
+
+
+class Stepper:
+    """What a solver supplies to the driver.
+
+    After ``step()``: ``t_old``, ``t`` (the step), ``u`` (the new state);
+    ``interpolate(tq)`` for ``t_old <= tq <= t``; counters ``nsteps``,
+    ``nrejected``, ``njev``. A stepper never steps past ``t_bound``.
+    """
+
+    t: float
+    t_old: float
+    u: np.ndarray
+    nsteps: int = 0
+    nrejected: int = 0
+    njev: int = 0
+
+    def step(self) -> None:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def interpolate(self, tq: float) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def stats(self) -> dict:
+        return {}
+
+
+# ------------------------------------------------------------------- recording
+def consistent_row(c, t, u, modes):
+    """Full ``(y, y')`` for the output from the ODE state.
+
+    The same layout as ``CompiledSystem.assemble_y``, without its forward
+    difference for the rates of the algebraic unknowns (only IDA's
+    predictor uses those; the named outputs never do), which halves the
+    cost of recording.
+    """
+    x, v, z = c.ode_lift(t, u, modes)
+    a, lam, dz = c.accelerations(t, x, v, z, modes)
+    y = np.zeros(c.N)
+    yp = np.zeros(c.N)
+    y[c.ix], y[c.iv], y[c.iad], y[c.ilam], y[c.iz] = x, v, a[c.Dv], lam, z
+    yp[c.ix], yp[c.iv], yp[c.iz] = v, a, dz
+    return y, yp
+
+
+# ----------------------------------------------------------------------- events
+class EventWatch:
+    """The friction event functions along the integration (each crosses downward through zero).
+
+    A function that is not positive at a (re)start is *disarmed* until it
+    becomes positive: the mode logic has just accepted that state, and a
+    "crossing" at the restart instant would loop at the event.
+    """
+
+    def __init__(self, c, friction):
+        self.c = c
+        self.fr = friction
+        self.armed = np.ones(friction.n_events, bool)
+
+    def values(self, t, u, modes):
+        y, yp = consistent_row(self.c, t, u, modes)      # event functions read y only
+        return np.asarray(self.fr.event_values(t, y, yp, modes), float)
+
+    def arm(self, values):
+        self.armed = values > 0
+
+    def crossed(self, values):
+        hit = self.armed & (values <= 0)
+        self.armed |= values > 0
+        return np.nonzero(hit)[0]
+
+    def locate(self, stepper, modes, which):
+        """Earliest crossing in the last step: (t*, u*, index).
+
+        Illinois-modified regula falsi on the stepper's interpolant, keeping a
+        bracket [a, b] with value > 0 at a and <= 0 at b; returns b, so the
+        restart point is on the crossed side (the condition has strictly flipped).
+        """
+        best = None
+        for k in which:
+            a, b = stepper.t_old, stepper.t
+            fa = self._value_at(stepper, a, modes, k)
+            fb = self._value_at(stepper, b, modes, k)
+            if not fa > 0:          # the interpolant disagrees at the step start: crossing at once
+                tb = a
+            else:
+                tb = locate_crossing(lambda s: self._value_at(stepper, s, modes, k), a, b, fa, fb)
+            if best is None or tb < best[0]:
+                best = (tb, k)
+        t_star, k = best
+        return t_star, stepper.interpolate(t_star), k
+
+    def _value_at(self, stepper, s, modes, k):
+        return self.values(s, stepper.interpolate(s), modes)[k]
+
+
+def locate_crossing(f, a, b, fa, fb, max_iter=200):
+    """Smallest-bracket search for the downward crossing of f on [a, b] (fa > 0 >= fb); returns b."""
+    xtol = 4 * EPS * max(1.0, abs(a), abs(b))
+    side = 0
+    for _ in range(max_iter):
+        if b - a <= xtol:
+            break
+        # Illinois: halve the weight of an end point that stays twice in a row
+        s = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not (a < s < b):
+            s = 0.5 * (a + b)
+        fs = f(s)
+        if fs > 0:
+            a, fa = s, fs
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            b, fb = s, fs
+            if side == 1:
+                fa *= 0.5
+            side = 1
+    return b
+
+
+# ------------------------------------------------------------------------ driver
+@dataclass
+class SegmentEnd:
+    t: float
+    u: np.ndarray
+    crossed: int | None = None      # index of the event function, None at the segment end
+
+
+def _stability_message(problem, t, u, name):
+    """Explain a blow-up of an explicit method by the spectral radius of dg/du at the segment start."""
+    try:
+        J = problem.jacobian(t, u)
+        if J.shape[0] <= 600:
+            rho = float(np.max(np.abs(np.linalg.eigvals(J.toarray()))))
+        else:
+            from scipy.sparse.linalg import eigs
+            rho = float(np.abs(eigs(J, k=1, which="LM", return_eigenvectors=False))[0])
+    except Exception:  # the message is a hint only; the failure itself is reported below
+        return ""
+    return (f" The spectral radius of the Jacobian is about {rho:.3g} 1/s; an explicit method needs a step of "
+            f"order 1/{rho:.3g} = {1 / rho:.3g} s or below (pass h=...), or use an implicit solver "
+            f"('ida', 'scipy:Radau', 'scipy:BDF').")
+
+
+def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None, *, max_events=100000,
+                 chatter_window=None, chatter_count=50, explicit=False):
+    """Run ``model`` with the stepper factory of an ODE-form solver; returns a ``Result``.
+
+    ``make_stepper(problem, t0, u0, t_bound, knots)`` builds a stepper for one
+    segment; ``knots`` are the output instants in ``(t0, t_bound]`` (fixed-step
+    methods land on them exactly, adaptive ones interpolate).
+    """
+    t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    tc = time.perf_counter()
+    c = model.compile()
+    compile_time = time.perf_counter() - tc
+    t0 = time.perf_counter()
+    grid = output_grid(t_start, t_end, dt_out)
+    stops = signal_breakpoints(model, t_start, t_end) + [t_end]
+    fr = c.friction
+    modes = fr.start_modes(t_start) if fr else c.modes0
+    stop_iter = iter(stops)
+    t_stop = next(stop_iter)
+    c._t_right = t_stop
+    stats = Stats(solver=name, compile_time=compile_time)
+    events: list[Event] = []
+    if fr:
+        y, yp, modes, changes = fr.settle(t_start, None, modes, initial=True)
+    else:
+        y, yp = c.initial_y(t_start, modes)
+    problem = OdeProblem(c, modes)
+    u = c.ode_state(y)
+    rec = Recorder(c.mf)
+    rec.add(t_start, y, yp, modes)
+    watch = EventWatch(c, fr) if (fr and fr.n_events > 0) else None
+    guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
+    extra = {"rejected": 0}
+    t = t_start
+    while True:
+        c._t_right = t_stop
+        problem.modes = modes
+        inner = grid[(grid > t) & (grid < t_stop)]
+        knots = np.append(inner, t_stop)
+        end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, rec, stats, extra, name, explicit)
+        stats.segments += 1
+        if end.crossed is not None:
+            t, u = end.t, end.u
+            y_ev, yp_ev = c.y_from_ode(t, u, modes)
+            rec.add(t, y_ev, yp_ev, modes)
+            crossed = np.zeros(fr.n_events, int)
+            crossed[end.crossed] = -1
+            y, yp, new_modes, changes = fr.settle(t, (y_ev, yp_ev), modes, crossed=crossed)
+            for (comp, old, new) in changes:
+                events.append(Event(t, comp, old, new))
+                guard.record(t, comp)
+            if len(events) > max_events:
+                raise SimulationError(f"more than {max_events} mode changes in model '{model.name}'; raise "
+                                      f"max_events or simplify the model")
+            modes = new_modes
+            u = c.ode_state(y)
+            rec.add(t, y, yp, modes)
+            continue
+        t, u = t_stop, end.u
+        rec.add(t, *consistent_row(c, t, u, modes), modes, left=True)
+        if t >= t_end:
+            break
+        t_stop = next(stop_iter)
+        c._t_right = t_stop
+        if fr:
+            y, yp = c.y_from_ode(t, u, modes)
+            y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
+            for (comp, old, new) in changes:
+                events.append(Event(t, comp, old, new))
+                guard.record(t, comp)
+            modes = new_modes
+            u = c.ode_state(y)
+        else:
+            y, yp = consistent_row(c, t, u, modes)
+        rec.add(t, y, yp, modes)
+    stats.wall_time = time.perf_counter() - t0
+    stats.rhs_calls = problem.nfev
+    stats.jac_calls += problem.njev
+    stats.events = len(events)
+    stats.extra.update(extra)
+    from ..compile.outputs import Trajectory
+    T, Y, YP, L, MO = rec.arrays()
+    return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
+
+
+def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, rec, stats, extra, name, explicit):
+    """Integrate one segment; record the grid points inside it; stop at a crossing or at ``t_stop``."""
+    c, modes = problem.c, problem.modes
+    stepper = make_stepper(problem, t, u, t_stop, knots)
+    if watch is not None:
+        watch.arm(watch.values(t, u, modes))
+    inner = knots[:-1]
+    k_next = 0
+    try:
+        while stepper.t < t_stop:
+            with np.errstate(over="ignore", invalid="ignore"):     # a blow-up is reported just below
+                stepper.step()
+            if not np.all(np.isfinite(stepper.u)):
+                hint = _stability_message(problem, t, u, name) if explicit else ""
+                raise SimulationError(
+                    f"solver '{name}' produced non-finite values at t={stepper.t:.6g} in model "
+                    f"'{c.model.name}'.{hint or ' Try a tighter rtol or a stiff solver (ida, scipy:Radau).'}")
+            t_hit = None
+            if watch is not None:
+                which = watch.crossed(watch.values(stepper.t, stepper.u, modes))
+                if len(which):
+                    t_hit, u_hit, k_hit = watch.locate(stepper, modes, which)
+            t_upto = stepper.t if t_hit is None else t_hit
+            while k_next < len(inner) and inner[k_next] <= t_upto:
+                tq = inner[k_next]
+                if t_hit is not None and tq == t_hit:
+                    break                   # recorded as the event's "before" row
+                uq = stepper.u if tq == stepper.t else stepper.interpolate(tq)
+                rec.add(tq, *consistent_row(c, tq, uq, modes), modes)
+                k_next += 1
+            if t_hit is not None:
+                return SegmentEnd(t_hit, u_hit, k_hit)
+        return SegmentEnd(t_stop, stepper.u)
+    finally:
+        stats.steps += stepper.nsteps
+        stats.jac_calls += stepper.njev
+        extra["rejected"] += stepper.nrejected
+        for key, val in stepper.stats().items():
+            extra[key] = extra.get(key, 0) + val
