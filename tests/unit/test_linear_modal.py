@@ -76,6 +76,24 @@ def test_free_free_chain_has_one_rigid_mode():
     np.testing.assert_allclose(table.row(table.index[1]), [1.0, -1.0 / 3.0])  # momentum balance
 
 
+def test_free_free_long_chain_partial_finds_the_rigid_mode():
+    n, c = 800, 1e4
+    m = rm.Model("free_free")
+    prev = None
+    for i in range(n):
+        body = m.add(Inertia(f"J{i}", J=1.0))
+        if prev is not None:
+            s = m.add(Spring(f"c{i}", c=c))
+            m.connect(prev, s.flange_a)
+            m.connect(s.flange_b, body.flange_a)
+        prev = body.flange_b
+    res = modal(m.linearize(), k=4)
+    assert res.rigid.tolist() == [True, False, False, False]
+    k = np.arange(1, 4)
+    np.testing.assert_allclose(res.omega[1:], 2 * np.sqrt(c) * np.sin(k * np.pi / (2 * n)), rtol=1e-9)
+    np.testing.assert_allclose(res.damped.eigenvalues, 1j * res.omega, rtol=1e-9)
+
+
 def geared(coupling_stiffness, J=(0.4, 0.2, 1.5), c1=300.0, c3=80.0, ratio=3.0):
     """ground -c1- J1 -gear(ratio)- J2 -coupling- J3 -c3- ground."""
     m = rm.Model("geared")

@@ -122,3 +122,25 @@ def test_errors_and_plots(tmp_path):
     order_sweep(lin, ["J2.w"], [(1, 1.0, 0.0)], [1.0, 2.0]).plot(tmp_path / "o.png")
     for name in ("r.png", "m.png", "o.png"):
         assert (tmp_path / name).stat().st_size > 1000
+
+
+def test_kinematic_input_through_a_stuck_clutch():
+    # Position source -> hub =stuck clutch= J2 -spring- J3: J2 follows the source, J3 is the only freedom
+    from regmech.components import Clutch
+    m = rm.Model("stuck_drive")
+    pos = m.add(Position("pos", phi_ref=0.0))
+    hub, j2, j3 = m.add(Inertia("hub", J=1.0)), m.add(Inertia("J2", J=2.0)), m.add(Inertia("J3", J=0.5))
+    cl = m.add(Clutch("clutch", fn_max=50.0))
+    s = m.add(Spring("s", c=200.0))
+    m.connect(pos.flange, hub.flange_a)
+    m.connect(hub.flange_b, cl.flange_a)
+    m.connect(cl.flange_b, j2.flange_a)
+    m.connect(j2.flange_b, s.flange_a)
+    m.connect(s.flange_b, j3.flange_a)
+    lin = m.linearize(modes={"clutch": "Stuck"})
+    assert lin.coords == ["J3"]
+    w = 2 * np.pi * np.array([0.5, 1.5, 4.0])
+    resp = harmonic_response(lin, ["J2.phi", "J3.phi", "clutch.w_rel"], w / (2 * np.pi))
+    np.testing.assert_allclose(resp["J2.phi"], 1.0, rtol=1e-12)
+    np.testing.assert_allclose(resp["J3.phi"], 200.0 / (200.0 - 0.5 * w ** 2), rtol=1e-12)
+    np.testing.assert_allclose(resp["clutch.w_rel"], 0.0, atol=1e-12)

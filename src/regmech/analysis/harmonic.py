@@ -140,8 +140,8 @@ class FrequencyResponse:
         return self._col(name)
 
     def table(self) -> Table:
-        data = np.column_stack([np.column_stack([np.abs(self.values[:, j]), np.angle(self.values[:, j])])
-                                for j in range(len(self.outputs))]) if self.outputs else np.zeros((len(self.freqs_hz), 0))
+        parts = [c for j in range(len(self.outputs)) for c in (np.abs(self.values[:, j]), np.angle(self.values[:, j]))]
+        data = np.column_stack(parts) if parts else np.zeros((len(self.freqs_hz), 0))
         cols = [c for name in self.outputs for c in (f"|{name}|", f"arg {name} [rad]")]
         return Table(data, [f"{f:.6g}" for f in self.freqs_hz], cols, title="harmonic response",
                      index_name="f [Hz]")

@@ -40,6 +40,8 @@ DENSE_MAX = 4000
 DENSE_SMALL = 400
 #: the same for the damped (companion, twice the size, non-symmetric) problem
 DAMPED_DENSE_SMALL = 150
+#: largest model whose damped roots are all computed at once (k=None)
+DAMPED_DENSE_MAX = 1500
 
 
 @dataclass
@@ -295,6 +297,9 @@ def damped_modes(lin, k: int | None = None, sigma: float = 0.0, n_rigid: int = 0
     if scale is None:
         scale = _gershgorin_scale(lin)
     root_scale = np.sqrt(scale)
+    if k is None and n > DAMPED_DENSE_MAX:
+        raise ParameterError(f"damped modes: {n} coordinates are too many for all roots at once (a dense "
+                             f"{2 * n} x {2 * n} eigenproblem); give k, e.g. modal(lin, k=20).damped")
     if k is None or n <= max(DAMPED_DENSE_SMALL, k + 2):
         A, E = _companion(lin, dense=True)
         lam, vec = la.eig(A, E)
@@ -318,6 +323,8 @@ def damped_modes(lin, k: int | None = None, sigma: float = 0.0, n_rigid: int = 0
     lam = np.where(zero, 0.0, lam)
     tiny = np.abs(lam.imag) <= 1e-10 * np.maximum(np.abs(lam), root_scale * 1e-12)
     lam = np.where(tiny, lam.real, lam)
+    if not (lin.B.nnz if sp.issparse(lin.B) else np.count_nonzero(lin.B)):
+        lam = 1j * lam.imag      # no damping at all: the roots are exactly +-i w (round-off only in Re)
     keep = lam.imag >= 0
     lam, vec, zero = lam[keep], vec[:, keep], zero[keep]
     order = np.argsort(np.abs(lam), kind="stable")

@@ -169,11 +169,11 @@ class LinearModel:
             return "force", self.input_names.index(name)
         if name in self.kinematic_names:
             return "kinematic", self.kinematic_names.index(name)
-        bare = [n for n in self.input_names + self.kinematic_names if n.split(".")[0] == name]
+        bare = [n for n in self.all_inputs if n.split(".")[0] == name]
         if len(bare) == 1:
             return self._input(bare[0])
-        raise ParameterError(f"model '{self.compiled.model.name}' has no input '{name}'; its inputs are "
-                             f"{self.input_names + self.kinematic_names or 'none (add a Torque, Force, Position or Speed source)'}")
+        have = self.all_inputs or "none (add a Torque, Force, Position or Speed source)"
+        raise ParameterError(f"model '{self.compiled.model.name}' has no input '{name}'; its inputs are {have}")
 
     @property
     def all_inputs(self) -> list[str]:
@@ -296,7 +296,8 @@ def linearize(compiled, t: float = 0.0, modes=None, at=None, sparse: bool | None
         d_fric = np.where(sliding, -slide_w, 0.0)
         if not np.all(np.isfinite(d_fric)):
             bad = [st.friction[j].device.name for j in np.nonzero(~np.isfinite(d_fric))[0]]
-            raise StructureError(f"linearize: friction characteristic slope of {bad} is not finite at the operating point")
+            raise StructureError(f"linearize: the friction characteristic slope of {bad} is not finite at the "
+                                 f"operating point; choose another point (at=...)")
         B_full = (B_full + c.Gf.T @ sp.diags(d_fric) @ c.Gf).tocsr()
     M_full = sp.diags(c.mass).tocsr()
 
@@ -541,7 +542,8 @@ def _eliminate(G, D, n):
     try:
         lu = spla.splu(G[:, D].tocsc())
     except RuntimeError as exc:  # pragma: no cover - the compiler checked G_D
-        raise StructureError(f"linearize: the dependent-coordinate block of the constraints is singular ({exc})") from None
+        raise StructureError(f"linearize: the dependent-coordinate block of the constraints is singular "
+                             f"({exc})") from None
     GK = G[:, K].tocsc()
     used = np.nonzero(np.diff(GK.indptr))[0]
     rows, cols, vals = [K, ], [np.arange(len(K))], [np.ones(len(K))]
