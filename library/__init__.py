@@ -4,6 +4,7 @@
 ``SCENES`` maps scene names to builder functions.
 """
 
+from .chains import chain_drive, train
 from .msl import coupled_clutches, first, one_way_clutch
 
 SCENES = {
@@ -12,5 +13,7 @@ SCENES = {
 
 SCENES["coupled_clutches"] = coupled_clutches
 SCENES["one_way_clutch"] = one_way_clutch
+SCENES["train"] = train
+SCENES["chain_drive"] = chain_drive
 
-__all__ = ["SCENES", "first", "coupled_clutches", "one_way_clutch"]
+__all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch"]
