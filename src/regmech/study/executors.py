@@ -1,0 +1,161 @@
+"""Where the runs of a study execute: in this process, in local worker processes, or on Dask.
+
+Every backend takes batches of runs ``[(run_id, params), ...]`` and yields
+``(batch, rows)`` as batches finish (any order; the study sorts by run id),
+or ``(batch, exception)`` when a whole batch was lost (a worker died, the
+recipe could not be loaded there). Batches, not single runs, go to the
+workers: one task per batch amortises the scheduling and pickling cost, and
+consecutive runs in one worker reuse its warm kernel-template cache.
+
+``cancel()`` drops the batches not yet started (Ctrl-C); ``harvest()`` then
+returns the batches that finished but were not yet yielded, so nothing that
+was computed is lost.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+
+from ..errors import ParameterError
+from .worker import StudySpec, ignore_sigint, run_batch, run_batch_payload
+
+DASK_ADDRESS_SCHEMES = ("tcp://", "tls://", "inproc://", "ucx://", "ws://", "wss://")
+
+
+def make_backend(executor, spec: StudySpec, workers: int | None):
+    """The backend for ``sweep(executor=...)``: None or "process", "serial", "dask", a Dask
+    scheduler address, a ``dask.distributed.Client`` or any ``concurrent.futures.Executor``."""
+    if executor == "serial":
+        return SerialBackend(spec)
+    if executor is None or executor == "process":
+        return FuturesBackend(spec, None, workers)
+    if isinstance(executor, Executor):
+        return FuturesBackend(spec, executor, workers)
+    if executor == "dask" or (isinstance(executor, str) and executor.startswith(DASK_ADDRESS_SCHEMES)) \
+            or type(executor).__name__ == "Client":
+        return DaskBackend(spec, executor, workers)
+    raise ParameterError(f"sweep: unknown executor {executor!r}; use 'serial', 'process' (default), 'dask', a Dask "
+                         f"scheduler address ('tcp://host:port'), a dask.distributed.Client or a "
+                         f"concurrent.futures.Executor")
+
+
+def default_workers() -> int:
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+
+
+class SerialBackend:
+    """Runs in this process, one batch after the other (no pickling: lambdas are fine)."""
+
+    name = "serial"
+    workers = 1
+
+    def __init__(self, spec: StudySpec):
+        self.spec = spec
+
+    def run(self, batches):
+        for batch in batches:
+            yield batch, run_batch(self.spec, batch)
+
+    def cancel(self):
+        pass
+
+    def harvest(self):
+        return []
+
+    def close(self):
+        pass
+
+
+class FuturesBackend:
+    """A ``concurrent.futures`` executor: by default a ``ProcessPoolExecutor`` of its own
+    (``workers`` processes, default: the CPUs this process may use), shut down at the end."""
+
+    def __init__(self, spec: StudySpec, executor: Executor | None, workers: int | None):
+        self.payload = spec.dumps()
+        self.own = executor is None
+        self.workers = workers or (default_workers() if self.own else getattr(executor, "_max_workers", 1))
+        self.name = "process" if self.own else type(executor).__name__
+        self.pool = ProcessPoolExecutor(self.workers, initializer=ignore_sigint) if self.own else executor
+        self._futures: dict = {}
+        self._yielded: set = set()
+
+    def run(self, batches):
+        self._futures = {self.pool.submit(run_batch_payload, self.payload, b): b for b in batches}
+        for fut in as_completed(self._futures):
+            self._yielded.add(fut)
+            yield self._futures[fut], _outcome(fut)
+
+    def cancel(self):
+        for fut in self._futures:
+            fut.cancel()
+
+    def harvest(self):
+        done = [f for f in self._futures if f.done() and not f.cancelled() and f not in self._yielded]
+        self._yielded.update(done)
+        return [(self._futures[f], _outcome(f)) for f in done]
+
+    def close(self):
+        if self.own:
+            # running batches finish in the background; nothing waits for pending ones
+            self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _outcome(fut):
+    try:
+        return fut.result()
+    except Exception as exc:   # the whole batch was lost (worker died, recipe not loadable)
+        return exc
+
+
+class DaskBackend:
+    """A ``dask.distributed`` cluster: a given ``Client``, a client to a scheduler address,
+    or a ``LocalCluster`` started here (``workers`` single-threaded worker processes) and
+    closed at the end. The recipe is scattered to every worker once."""
+
+    name = "dask"
+
+    def __init__(self, spec: StudySpec, executor, workers: int | None):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            raise ParameterError("sweep(executor='dask') needs dask.distributed: pip install 'regmech[dask]'") from None
+        self._owned = []
+        if executor == "dask":
+            cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+            self.client = Client(cluster)
+            self._owned = [self.client, cluster]
+        elif isinstance(executor, str):
+            self.client = Client(executor)
+            self._owned = [self.client]
+        else:
+            self.client = executor
+        self.workers = max(1, sum(self.client.nthreads().values()))
+        self.payload = self.client.scatter(spec.dumps(), broadcast=True)
+        self._futures: dict = {}
+        self._yielded: set = set()
+
+    def run(self, batches):
+        from dask.distributed import as_completed as dask_completed
+        self._futures = {self.client.submit(run_batch_payload, self.payload, b, pure=False): b for b in batches}
+        for fut in dask_completed(list(self._futures)):
+            self._yielded.add(fut)
+            yield self._futures[fut], _outcome(fut)
+
+    def cancel(self):
+        pending = [f for f in self._futures if not f.done()]
+        if pending:
+            self.client.cancel(pending)
+
+    def harvest(self):
+        done = [f for f in self._futures if f.status == "finished" and f not in self._yielded]
+        self._yielded.update(done)
+        return [(self._futures[f], _outcome(f)) for f in done]
+
+    def close(self):
+        self._futures = {}          # drop the references: the cluster forgets the results
+        self._yielded = set()
+        self.payload = None
+        for obj in self._owned:
+            obj.close()
