@@ -12,8 +12,7 @@ from __future__ import annotations
 import math
 
 import regmech as rm
-from regmech.components import Fixed, Force, Inertia, Mass, Spring, SpringDamper
-from regmech.components.powertrain import RoadLoad
+from regmech.components import Fixed, Force, Inertia, Mass, RoadLoad, Spring, SpringDamper
 from regmech.ports import ROTATIONAL, TRANSLATIONAL
 from regmech.signals import Ramp, Sine
 
