@@ -152,10 +152,11 @@ class Model:
         from .solvers import simulate
         return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, t_start=t_start, **options)
 
-    def linearize(self, t: float = 0.0, modes=None, at=None):
-        """Structural-matrix form ``M q'' + B q' + C q = W u`` (see ``compile.linear``)."""
+    def linearize(self, t: float = 0.0, modes=None, at=None, **options):
+        """Structural-matrix form ``M q'' + B q' + C q = W u`` (see ``compile.linear.linearize``;
+        ``options``: e.g. ``sparse=True``)."""
         from .compile.linear import linearize
-        return linearize(self.compile(), t=t, modes=modes, at=at)
+        return linearize(self.compile(), t=t, modes=modes, at=at, **options)
 
     def __repr__(self) -> str:
         return f"Model({self.name!r}, {len(self.components)} components)"
