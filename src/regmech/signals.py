@@ -308,10 +308,10 @@ class Function(Signal):
         # central differences with Richardson extrapolation; steps balance truncation against
         # round-off (eps^(1/3) for the first derivative, eps^(1/4) for the second)
         if order == 1:
-            h = 1e-4 * max(1.0, abs(t))
+            h = 1e-4 + 1e-9 * abs(t)
             d = lambda k: (self.value(t + k) - self.value(t - k)) / (2 * k)  # noqa: E731
         elif order == 2:
-            h = 2e-3 * max(1.0, abs(t))
+            h = 2e-3 + 1e-8 * abs(t)
             d = lambda k: (self.value(t + k) - 2 * self.value(t) + self.value(t - k)) / (k * k)  # noqa: E731
         else:
             return 0.0
