@@ -7,14 +7,20 @@ For a class with ``k`` rows and internal states ``z`` the template holds
 * their nonzero partial derivatives w.r.t. ``e``, ``de`` and ``z``
   (the class's Jacobian *pattern* is known symbolically, so identically
   zero entries cost nothing),
-* ``potential(e)`` for the energy audit.
+* ``potential(e)`` for the energy audit,
+* whether the class is *affine*: every partial derivative depends on the
+  parameters only, so ``tau = tau(0) + J_e e + J_de de + J_z z`` with
+  constant ``J``. The compiler folds such devices (springs, dampers, torque
+  sources) into constant sparse matrices; only the offset ``tau(0)`` is
+  evaluated at run time, and only when it depends on time or inputs.
 
-Templates are cached per (class, kind): a model with 10,000 springs
+Templates are cached per (class, kind, rows): a model with 10,000 springs
 differentiates ``c*phi_rel`` once.
 """
 
 from __future__ import annotations
 
+import math
 import types
 from dataclasses import dataclass
 
@@ -23,6 +29,7 @@ import sympy
 
 from ..component import Device, numeric_params, signal_params
 from ..errors import ModelError
+from ..signals import Constant, Sine, Step
 
 _TEMPLATES: dict = {}
 
@@ -46,14 +53,31 @@ class _SymbolicSelf:
 
 @dataclass
 class Template:
+    """One device class (and kind and row count), compiled.
+
+    All functions take ``(e..., de..., z..., params..., inputs..., t)``:
+
+    * ``fn`` -> ``[tau..., dz..., jac entries..., potential]`` (everything);
+    * ``res_fn`` -> ``[tau..., dz...]`` (the residual needs only these);
+    * ``jac_fn`` -> ``[jac entries...]``;
+    * ``offset_fn(params..., inputs..., t)`` -> ``[tau(0)..., dz(0)...]`` at
+      ``e = de = z = 0`` (used for affine classes only).
+    """
+
     cls: type
     k: int                      # rows
     states: list[str]
     params: list[str]           # numeric parameters used
     inputs: list[str]           # signal parameters used
-    fn: object                  # (e..., de..., z..., params..., inputs..., t) -> [tau..., dz..., jac entries..., potential]
+    fn: object
     jac_entries: list[tuple]    # (output, wrt) with output in ('tau', i) / ('dz', i), wrt in ('e', j) / ('de', j) / ('z', j)
     n_out: int
+    res_fn: object = None
+    jac_fn: object = None
+    affine: bool = False        # all jac entries depend on parameters only
+    offset_fn: object = None
+    offset_varies: bool = False  # tau(0)/dz(0) depend on time or inputs
+    offset_uses_time: bool = False  # ... on time itself (not only through inputs)
 
 
 def _lambdify(args, exprs):
@@ -103,11 +127,74 @@ def template_for(dev: Device) -> Template:
     used = set().union(*(x.free_symbols for x in taus + dz + jac_exprs + [pot])) if (taus or dz) else set()
     params = [p for p in pnames if syms[p] in used]
     inputs = [p for p in inames if syms[p] in used]
-    args = list(e) + list(de) + z + [syms[p] for p in params] + [syms[p] for p in inputs] + [t]
+    param_syms = [syms[p] for p in params]
+    input_syms = [syms[p] for p in inputs]
+    args = list(e) + list(de) + z + param_syms + input_syms + [t]
     fn = _lambdify(args, taus + dz + jac_exprs + [pot])
-    tpl = Template(cls, k, states, params, inputs, fn, jac_entries, len(taus) + len(dz) + len(jac_exprs) + 1)
+    # affine: the Jacobian is a function of the parameters alone (no e, de, z, t or inputs)
+    variable = set(e) | set(de) | set(z) | {t} | set(input_syms)
+    affine = not any(x.free_symbols & variable for x in jac_exprs)
+    offset_fn, offset_varies, offset_uses_time = None, False, False
+    if affine:
+        zero = {s: 0 for s in list(e) + list(de) + z}
+        offsets = [x.subs(zero) for x in taus + dz]
+        offset_varies = any(x.free_symbols & ({t} | set(input_syms)) for x in offsets)
+        offset_uses_time = any(t in x.free_symbols for x in offsets)
+        offset_fn = _lambdify(param_syms + input_syms + [t], offsets)
+    tpl = Template(cls, k, states, params, inputs, fn, jac_entries, len(taus) + len(dz) + len(jac_exprs) + 1,
+                   res_fn=_lambdify(args, taus + dz), jac_fn=_lambdify(args, jac_exprs),
+                   affine=affine, offset_fn=offset_fn, offset_varies=offset_varies,
+                   offset_uses_time=offset_uses_time)
     _TEMPLATES[key] = tpl
     return tpl
+
+
+class SignalBank:
+    """The values of one signal parameter over all instances of a class, cheaply.
+
+    Constant signals are evaluated once; a large set of ``Sine`` or ``Step``
+    signals is evaluated with one numpy expression (same formula as
+    ``Sine.value``/``Step.value``); any other signal by its own ``value``.
+    """
+
+    VECTORISE_FROM = 8   # below this a Python loop over math.sin is faster than numpy
+
+    def __init__(self, signals: list):
+        self.n = len(signals)
+        self.values = np.zeros(self.n)
+        self.const = all(type(s) is Constant for s in signals)
+        for i, s in enumerate(signals):
+            if type(s) is Constant:
+                self.values[i] = s.value_
+        self._loop = [(i, s) for i, s in enumerate(signals) if type(s) is not Constant]
+        self._sine = self._step = None
+        sines = [(i, s) for i, s in self._loop if type(s) is Sine]
+        if len(sines) >= self.VECTORISE_FROM:
+            idx = np.array([i for i, _ in sines])
+            self._sine = (idx, *(np.array([getattr(s, a) for _, s in sines])
+                                 for a in ("offset", "amplitude", "freq_hz", "phase", "start_time")))
+            self._loop = [(i, s) for i, s in self._loop if type(s) is not Sine]
+        steps = [(i, s) for i, s in self._loop if type(s) is Step]
+        if len(steps) >= self.VECTORISE_FROM:
+            idx = np.array([i for i, _ in steps])
+            self._step = (idx, *(np.array([getattr(s, a) for _, s in steps])
+                                 for a in ("offset", "height", "start_time")))
+            self._loop = [(i, s) for i, s in self._loop if type(s) is not Step]
+
+    def at(self, t: float, left: bool = False) -> np.ndarray:
+        """Values at t (left limits when ``left``); the array is reused: copy to keep it."""
+        vals = self.values
+        for i, s in self._loop:
+            vals[i] = s.value(t, left)
+        if self._sine is not None:
+            idx, off, amp, f, ph, t0 = self._sine
+            on = t > t0 if left else t >= t0
+            vals[idx] = off + on * (amp * np.sin(2.0 * math.pi * f * (t - t0) + ph))
+        if self._step is not None:
+            idx, off, h, t0 = self._step
+            on = t > t0 if left else t >= t0
+            vals[idx] = off + on * h
+        return vals
 
 
 class KernelGroup:
@@ -129,9 +216,18 @@ class KernelGroup:
             pvals.append(vals)
         self.param_values = pvals
         self.signals = [[d._values[p] for d in devices] for p in tpl.inputs]
+        self.banks = [SignalBank(sigs) for sigs in self.signals]
+        self.inputs_constant = all(b.const for b in self.banks)
+        #: affine class whose offset tau(0) changes in time (e.g. a Torque with a Sine): evaluated per call
+        self.offset_varies = tpl.affine and (tpl.offset_uses_time or (tpl.offset_varies and not self.inputs_constant))
 
     def inputs_at(self, t: float, left: bool = False) -> list[np.ndarray]:
-        return [np.fromiter((s.value(t, left) for s in sigs), float, self.n) for sigs in self.signals]
+        """Input values per signal parameter (fresh arrays)."""
+        return [b.at(t, left).copy() for b in self.banks]
+
+    def _inputs_now(self, t: float, left: bool) -> list[np.ndarray]:
+        # the banks' own arrays: valid until the next evaluation, for callers that consume them at once
+        return [b.at(t, left) for b in self.banks]
 
     def evaluate(self, e: np.ndarray, de: np.ndarray, z: np.ndarray, t: float, left: bool = False):
         """e, de: global compliant-row vectors; z: global state vector. Returns list of arrays."""
@@ -142,6 +238,35 @@ class KernelGroup:
                self.param_values + self.inputs_at(t, left) + [t]
         out = tpl.fn(*args)
         return [np.broadcast_to(np.asarray(o, dtype=float), (self.n,)) for o in out]
+
+    def call(self, fn, variables: list, t: float, left: bool = False):
+        """``fn(variables..., params..., inputs..., t)`` for the template's ``res_fn``/``jac_fn``.
+
+        The outputs may share memory with the input buffers: consume them before the next call.
+        """
+        return fn(*variables, *self.param_values, *self._inputs_now(t, left), t)
+
+    def offsets(self, t: float, left: bool = False) -> np.ndarray:
+        """Affine classes: ``[tau(0)..., dz(0)...]`` per instance, shape (k + ns, n)."""
+        res = np.empty((self.tpl.k + len(self.tpl.states)) * self.n)
+        self.offsets_into(res, 0, t, left)
+        return res.reshape(-1, self.n)
+
+    def offsets_into(self, buf: np.ndarray, start: int, t: float, left: bool = False) -> None:
+        """Write ``offsets(t)`` row by row into ``buf[start:]`` (no allocation for the result)."""
+        n = self.n
+        for i, o in enumerate(self.tpl.offset_fn(*self.param_values, *self._inputs_now(t, left), t)):
+            buf[start + i * n: start + (i + 1) * n] = o
+
+    def constant_weights(self) -> np.ndarray:
+        """Affine classes: the (constant) Jacobian entries, shape (n_jac, n)."""
+        k, ns = self.tpl.k, len(self.tpl.states)
+        zeros = [np.zeros(self.n)] * (2 * k + ns)
+        out = self.call(self.tpl.jac_fn, zeros, 0.0)
+        res = np.empty((len(out), self.n))
+        for i, o in enumerate(out):
+            res[i] = o
+        return res
 
     def evaluate_series(self, E: np.ndarray, DE: np.ndarray, Z: np.ndarray, T: np.ndarray, left: np.ndarray):
         """Vectorised over time: E (T x rows), returns list of (T x n) arrays."""

@@ -31,7 +31,8 @@ import scipy.sparse.linalg as spla
 
 from ..errors import RegularityWarning, SimulationError, StructureError
 from ..structure.system import MechanicalStructure, build_structure
-from .assembly import PatternBuilder
+from .assembly import PatternBuilder, kernel_terms
+from .evaluation import EvaluationPlan, JacobianPlan
 from .kernels import KernelGroup, template_for
 
 
@@ -108,6 +109,11 @@ class CompiledSystem:
         self.ilam = 2 * n + nd + np.arange(m)
         self.iz = 2 * n + nd + m + np.arange(nz)
         self.N = 2 * n + nd + m + nz
+        # the same index sets as slices: views instead of gathers in the hot path
+        self._sx, self._sv = slice(0, 2 * n, 2), slice(1, 2 * n, 2)
+        self._sad = slice(2 * n, 2 * n + nd)
+        self._slam = slice(2 * n + nd, 2 * n + nd + m)
+        self._sz = slice(2 * n + nd + m, self.N)
         # residual slots
         self.r_kin = self.ix[self.Kx]
         self.r_pos = self.ix[self.Dx]          # mp rows (len(Dx) == mp)
@@ -144,73 +150,51 @@ class CompiledSystem:
         return gp, gv
 
     def _build_jacobian(self):
-        n = self.n
-        pb = PatternBuilder(self.N)
-        # kinematics
-        pb.cj(self.r_kin, self.ix[self.Kx], np.ones(len(self.Kx)))
-        pb.const(self.r_kin, self.iv[self.Kx], -np.ones(len(self.Kx)))
-        # position rows on x
-        Gp = self.Gp.tocoo()
-        pb.const(self.r_pos[Gp.row], self.ix[Gp.col], Gp.data)
-        # velocity rows on v
-        Gpv = self.Gpv.tocoo()
-        pb.const(self.r_vel[Gpv.row], self.iv[Gpv.col], Gpv.data)
-        # motion: M a
-        pb.cj(self.r_mot[self.Kv], self.iv[self.Kv], self.mass[self.Kv])
-        pb.const(self.r_mot[self.Dv], self.iad, self.mass[self.Dv])
-        # motion: G^T lam
-        GT = self.Gall.tocoo()
-        pb.const(self.r_mot[GT.col], self.ilam[GT.row], GT.data)
-        # acceleration rows: G_pv a
+        """Pattern of ``dF/dy + cj dF/dy'`` and the evaluation plans (``compile.evaluation``).
+
+        The constant coefficients of the residual are listed once (``terms``)
+        and feed both the Jacobian pattern and the residual matrix; the device
+        kernels' terms come from ``assembly.kernel_terms`` (vectorised over instances).
+        """
+        ones = np.ones
+        Gp, Gpv, GT = self.Gp.tocoo(), self.Gpv.tocoo(), self.Gall.tocoo()
         dmask = self.is_dummy_v[Gpv.col]
-        pb.cj(self.r_acc[Gpv.row[~dmask]], self.iv[Gpv.col[~dmask]], Gpv.data[~dmask])
-        pb.const(self.r_acc[Gpv.row[dmask]], self.iad[self.pos_in_Dv[Gpv.col[dmask]]], Gpv.data[dmask])
-        # device states
-        pb.cj(self.r_z, self.iz, np.ones(self.nz))
-        # kernel Jacobians: weights layout
-        Sc = self.Sc.tocsr()
-        woff = 0
+        # (residual rows, y columns, coefficients, coefficient of y' rather than y)
+        terms = [
+            (self.r_kin, self.ix[self.Kx], ones(len(self.Kx)), True),              # x' - v
+            (self.r_kin, self.iv[self.Kx], -ones(len(self.Kx)), False),
+            (self.r_pos[Gp.row], self.ix[Gp.col], Gp.data, False),                 # G_p x
+            (self.r_vel[Gpv.row], self.iv[Gpv.col], Gpv.data, False),              # G_pv v
+            (self.r_mot[self.Kv], self.iv[self.Kv], self.mass[self.Kv], True),     # M a
+            (self.r_mot[self.Dv], self.iad, self.mass[self.Dv], False),
+            (self.r_mot[GT.col], self.ilam[GT.row], GT.data, False),               # G^T lam
+            (self.r_acc[Gpv.row[~dmask]], self.iv[Gpv.col[~dmask]], Gpv.data[~dmask], True),   # G_pv a
+            (self.r_acc[Gpv.row[dmask]], self.iad[self.pos_in_Dv[Gpv.col[dmask]]], Gpv.data[dmask], False),
+            (self.r_z, self.iz, ones(self.nz), True),                              # z'
+        ]
+        pb = PatternBuilder(self.N)
+        for rows, cols, vals, on_yp in terms:
+            (pb.cj if on_yp else pb.const)(rows, cols, vals)
+        # kernel Jacobians: weights of group g, entry q, instance i at woff_g + q * n_g + i
         self._wslices = []
+        woff = 0
         for g in self.groups:
-            tpl = g.tpl
-            njac = len(tpl.jac_entries)
-            self._wslices.append((woff, njac))
-            for q, ((oname, oi), (wname, wj)) in enumerate(tpl.jac_entries):
-                widx_base = woff + q * g.n
-                for inst in range(g.n):
-                    widx = widx_base + inst
-                    # column block
-                    if wname in ("e", "de"):
-                        crow = g.row_index[inst, wj]
-                        lo, hi = Sc.indptr[crow], Sc.indptr[crow + 1]
-                        ccols, ccoef = Sc.indices[lo:hi], Sc.data[lo:hi]
-                        yc = (self.ix if wname == "e" else self.iv)[ccols]
-                    else:
-                        yc, ccoef = np.array([self.iz[g.state_index[inst, wj]]]), np.array([1.0])
-                    if oname == "tau":
-                        orow = g.row_index[inst, oi]
-                        lo, hi = Sc.indptr[orow], Sc.indptr[orow + 1]
-                        rcols, rcoef = Sc.indices[lo:hi], Sc.data[lo:hi]
-                        yr = self.r_mot[rcols]
-                        sign = 1.0
-                    else:
-                        yr, rcoef = np.array([self.r_z[g.state_index[inst, oi]]]), np.array([1.0])
-                        sign = -1.0
-                    rr, cc = np.meshgrid(yr, yc, indexing="ij")
-                    coef = sign * np.outer(rcoef, ccoef)
-                    pb.weighted(rr, cc, coef, np.full(rr.size, widx))
-            woff += njac * g.n
+            self._wslices.append((woff, len(g.tpl.jac_entries)))
+            woff += len(g.tpl.jac_entries) * g.n
         self.nw_kernel = woff
+        kt = kernel_terms(self)
+        pb.weighted(kt.row, kt.col, kt.coef, kt.widx)
         self._pb = pb
         self.jac = pb.build()
+        self._plan = EvaluationPlan(self, terms, kt)
 
     # --------------------------------------------------------------- evaluate
     def unpack(self, y, yp):
-        x = y[self.ix]
-        v = y[self.iv]
-        a = yp[self.iv].copy()
-        a[self.Dv] = y[self.iad]
-        return x, v, a, y[self.ilam], y[self.iz]
+        x = y[self._sx].copy()
+        v = y[self._sv].copy()
+        a = yp[self._sv].copy()
+        a[self.Dv] = y[self._sad]
+        return x, v, a, y[self._slam].copy(), y[self._sz].copy()
 
     def kernel_outputs(self, x, v, z, t):
         """tau (compliant rows), dz, jacobian weights, per-group raw outputs."""
@@ -218,38 +202,37 @@ class CompiledSystem:
         de = self.Sc @ v
         tau = np.zeros(len(e))
         dz = np.zeros(self.nz)
-        weights = np.empty(self.nw_kernel)
+        weights = self._plan.const_weights.copy()      # affine classes: constant, already in place
         left = t >= self._t_right
         for g, (woff, njac) in zip(self.groups, self._wslices):
-            out = g.evaluate(e, de, z, t, left)
             k, ns = g.tpl.k, len(g.tpl.states)
+            ri, si = g.row_index, g.state_index
+            variables = [e[ri[:, r]] for r in range(k)] + [de[ri[:, r]] for r in range(k)] + \
+                        [z[si[:, s]] for s in range(ns)]
+            out = g.call(g.tpl.res_fn, variables, t, left)
             for r in range(k):
-                tau[g.row_index[:, r]] = out[r]
+                tau[ri[:, r]] = out[r]
             for s in range(ns):
-                dz[g.state_index[:, s]] = out[k + s]
-            for q in range(njac):
-                weights[woff + q * g.n: woff + (q + 1) * g.n] = out[k + ns + q]
+                dz[si[:, s]] = out[k + s]
+            if njac and not g.tpl.affine:
+                for q, val in enumerate(g.call(g.tpl.jac_fn, variables, t, left)):
+                    weights[woff + q * g.n: woff + (q + 1) * g.n] = val
         return e, de, tau, dz, weights
 
     def residual(self, t, y, yp, res, modes=None):
-        x, v, a, lam, z = self.unpack(y, yp)
-        e, de, tau, dz, _ = self.kernel_outputs(x, v, z, t)
-        gp, gv = self._refs(t)
-        res[self.r_kin] = yp[self.ix[self.Kx]] - v[self.Kx]
-        res[self.r_pos] = self.Gp @ x + self.e0p - gp[0]
-        res[self.r_vel] = self.Gpv @ v - np.concatenate([gp[1], gv[0]])
-        res[self.r_mot] = self.mass * a + self.ScT @ tau + self.GallT @ lam
-        res[self.r_acc] = self.Gpv @ a - np.concatenate([gp[2], gv[1]])
+        """``F(t, y, y')`` into ``res`` (see the module docstring; one matrix product, ``compile.evaluation``)."""
+        self._plan.residual(t, y, yp, t >= self._t_right, res)
         if self.mf:
+            x, v, a, lam, z = self.unpack(y, yp)
             res[self.r_fric] = self.friction.residual_rows(t, v, a, lam[self.mp + self.mv:], modes)
-        res[self.r_z] = yp[self.iz] - dz
 
     def jacobian_data(self, t, y, yp, cj, modes=None):
-        x, v, a, lam, z = self.unpack(y, yp)
-        _, _, _, _, w = self.kernel_outputs(x, v, z, t)
-        if self.mf:
-            w = np.concatenate([w, self.friction.weights(t, v, cj, modes)])
-        return self.jac.data(cj, w)
+        """CSC values of ``dF/dy + cj dF/dy'`` on ``self.jac.pattern``."""
+        plan = self.__dict__.get("_jac_plan")
+        if plan is None or plan.jac is not self.jac:      # the pattern grows when friction rows are added
+            plan = self._jac_plan = JacobianPlan(self.jac, self._plan, self.nw_kernel)
+        extra = self.friction.weights(t, y[self._sv], cj, modes) if self.mf else None
+        return plan.data(t, y, cj, t >= self._t_right, extra)
 
     # ----------------------------------------------------- consistent values
     def _kkt(self, modes):

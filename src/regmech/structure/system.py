@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import min_weight_full_bipartite_matching
+from scipy.sparse.csgraph import maximum_bipartite_matching, min_weight_full_bipartite_matching
 
 from ..component import Device
 from ..errors import ModelError, StructureError
@@ -136,33 +136,42 @@ def _device_rows(devices, node_of, node_coord, n) -> dict[str, list[Row]]:
 
 
 def _levels(st: MechanicalStructure) -> dict:
-    """Pantelides on the incidence of the mechanical equations."""
-    eqs: dict = {}
-    derivative = {}
-    for k in range(st.n):
-        derivative[("x", k)] = ("dx", k)
-        derivative[("v", k)] = ("dv", k)
-    lam_of = {}
+    """Pantelides on the incidence of the mechanical equations.
+
+    Only coordinates touched by some constraint row take part: the motion
+    equation of a coordinate holds its own x, v, v' and the multipliers of
+    the constraints on it (device forces are known functions of x, v), so an
+    untouched coordinate's pair (kinematics, motion) is matched on its own and
+    never lies on an augmenting path. A model of 10,000 springs and no
+    constraints skips the search entirely.
+    """
     cons = st.position + st.speed + st.friction
-    for j, row in enumerate(cons):
-        lam_of[j] = ("lam", j)
-    touching: dict[int, list] = {k: [] for k in range(st.n)}
+    if not cons:
+        return {}
+    npos, nspd = len(st.position), len(st.speed)
+    touching: dict[int, list] = {}
     for j, row in enumerate(cons):
         for k in row.cols:
-            touching[int(k)].append(("lam", j))
-    for k in range(st.n):
+            touching.setdefault(int(k), []).append(("lam", j))
+    eqs: dict = {}
+    derivative = {}
+    for k in sorted(touching):
+        derivative[("x", k)] = ("dx", k)
+        derivative[("v", k)] = ("dv", k)
         eqs[("kin", k)] = {("dx", k), ("v", k)}
         eqs[("motion", k)] = {("dv", k), ("x", k), ("v", k), *touching[k]}
     for j, row in enumerate(cons):
-        if row in st.speed:
-            eqs[("con", j)] = {("v", int(k)) for k in row.cols}
-        elif row in st.friction:
-            eqs[("con", j)] = {("dv", int(k)) for k in row.cols} | {("lam", j)}
-        else:
+        if j < npos:
             eqs[("con", j)] = {("x", int(k)) for k in row.cols}
+        elif j < npos + nspd:
+            eqs[("con", j)] = {("v", int(k)) for k in row.cols}
+        else:
+            eqs[("con", j)] = {("dv", int(k)) for k in row.cols} | {("lam", j)}
     # structural nonsingularity of the original system (all derivatives as unknowns)
     # (Pantelides needs every equation matchable when all derivatives count as unknowns)
-    match, un_eq, un_var = structural_matching(eqs)
+    un_eq = []
+    if not _fully_matchable(eqs):
+        match, un_eq, un_var = structural_matching(eqs)   # the reference matching names the culprits
     if un_eq:
         bad_rows = [cons[e[1]] for e in un_eq if e[0] == "con"]
         names = sorted({_device_label(r) for r in bad_rows})
@@ -174,6 +183,20 @@ def _levels(st: MechanicalStructure) -> dict:
         raise StructureError(f"structurally singular model: equations {un_eq} cannot be matched to unknowns")
     counts = pantelides(eqs, derivative)
     return {j: counts[("con", j)] for j in range(len(cons))}
+
+
+def _fully_matchable(eqs: dict) -> bool:
+    """True when every equation can be matched to a distinct variable (scipy's Hopcroft-Karp, fast)."""
+    var_index: dict = {}
+    rows, cols = [], []
+    for i, vs in enumerate(eqs.values()):
+        for v in vs:
+            rows.append(i)
+            cols.append(var_index.setdefault(v, len(var_index)))
+    if len(var_index) < len(eqs):
+        return False
+    incidence = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(eqs), len(var_index)))
+    return bool(np.all(maximum_bipartite_matching(incidence, perm_type="column") >= 0))
 
 
 def _select_dummies(G: sp.csr_matrix, prefer_state: np.ndarray, rows: list[Row], exclude=()) -> np.ndarray:
@@ -211,6 +234,15 @@ def _select_dummies(G: sp.csr_matrix, prefer_state: np.ndarray, rows: list[Row],
         except RuntimeError:
             pass
     _raise_redundant(G, rows)
+
+
+def _nonsingular(block) -> bool:
+    try:
+        lu = sp.linalg.splu(sp.csc_matrix(block))
+    except RuntimeError:
+        return False
+    d = np.abs(lu.U.diagonal())
+    return bool(d.size == 0 or d.min() > 1e-12 * max(1.0, d.max()))
 
 
 def _raise_redundant(G: sp.csr_matrix, rows: list[Row]):
@@ -273,11 +305,19 @@ def build_structure(model) -> MechanicalStructure:
     fixed_p = np.isfinite(p0).astype(float)
     fixed_v = np.isfinite(v0).astype(float)
     Gp = st.matrix(st.position)
-    st.dummy_x = np.sort(_select_dummies(Gp, fixed_p + 0.5 * fixed_v, st.position))
     Gv = st.matrix(st.speed)
-    extra = _select_dummies(Gv, fixed_v, st.speed, exclude=st.dummy_x)
-    st.dummy_v = np.sort(np.concatenate([st.dummy_x, extra])).astype(int)
+    # One matching for the stacked position and speed rows (their velocity-level forms must be
+    # nonsingular together); the position rows' own columns then make G_p[:, D_x] square.
+    # Choosing D_x first and excluding it would leave a speed row on a rigid group no column.
+    cols = _select_dummies(sp.vstack([Gp, Gv]).tocsr(), fixed_p + 0.5 * fixed_v, st.position + st.speed)
+    dx = cols[: Gp.shape[0]]
+    if len(dx) and not _nonsingular(Gp[:, dx]):
+        outside = np.setdiff1d(np.arange(st.n), cols)
+        dx = _select_dummies(Gp, fixed_p + 0.5 * fixed_v, st.position, exclude=outside)
+    st.dummy_x = np.sort(dx).astype(int)
+    st.dummy_v = np.sort(cols).astype(int)
+    driven = set(st.dummy_v.tolist())
     for k, node in enumerate(coord_node):
-        if mass[k] == 0.0 and k not in set(st.dummy_v.tolist()):
+        if mass[k] == 0.0 and k not in driven:
             raise StructureError(f"the point {node.label()} has no mass and is not fully driven; insert a mass there")
     return st
