@@ -1,0 +1,195 @@
+"""The convolution method (SOURCES.md 004): its coefficients, limits, exactness and behaviour on models."""
+
+import numpy as np
+import pytest
+import sympy
+
+import regmech as rm
+from regmech.component import Param
+from regmech.components import Fixed, Inertia, Spring, Torque
+from regmech.components.elastic import TwoFlangeCompliant
+from regmech.library import first
+from regmech.signals import Sine, Step
+from regmech.solvers.convolution import (ConvolutionStepper, corrector, lag_rates, phi_functions, predictor)
+from regmech.solvers.ode_driver import OdeProblem
+
+Z_VALUES = [0.0, 1e-14, 1e-9, 1e-6, 1e-3, 0.1, 0.3, 0.4999999, 0.5, 0.5000001, 0.9, 2.0, 10.0, 50.0, 1e3, 1e8]
+
+
+def exact_phi(z):
+    """phi1, phi2 at 40 significant digits (sympy)."""
+    if z == 0:
+        return 1.0, 0.5
+    zz = sympy.Rational(repr(z))
+    p1 = (1 - sympy.exp(-zz)) / zz
+    p2 = (zz - 1 + sympy.exp(-zz)) / zz ** 2
+    return float(sympy.N(p1, 40)), float(sympy.N(p2, 40))
+
+
+def test_phi_functions_are_accurate_across_the_series_switch():
+    p1, p2 = phi_functions(np.array(Z_VALUES))
+    for z, a1, a2 in zip(Z_VALUES, p1, p2):
+        e1, e2 = exact_phi(z)
+        assert a1 == pytest.approx(e1, rel=4e-16, abs=0), z
+        assert a2 == pytest.approx(e2, rel=4e-16, abs=0), z
+
+
+def paper_predictor(y, y_prev, f, f_prev, h, T):
+    E = np.exp(-h / T)
+    return y * E + (1 - E) * f + (1 - (T / h) * (1 - E)) * (f - f_prev)
+
+
+def paper_corrector(y, f, f_next, h, T):
+    E = np.exp(-h / T)
+    return y * E + f_next - f * E - (T / h) * (f_next - f) * (1 - E)
+
+
+@pytest.mark.parametrize("T", [0.02, 0.1, 1.0, 7.0])
+def test_rate_form_equals_the_papers_formulas(T):
+    """u_P, u_C written with g = (f - u)/T agree with the paper's f-form (equal steps)."""
+    rng = np.random.default_rng(3)
+    h = 0.05
+    u, u_prev, u_new = rng.normal(size=3)
+    g, g_prev, g_new = rng.normal(size=3)
+    f, f_prev, f_new = u + T * g, u_prev + T * g_prev, u_new + T * g_new
+    r = np.array([1.0 / T])
+    assert predictor(u, g, u_prev, g_prev, h, h, r)[0] == pytest.approx(paper_predictor(u, u_prev, f, f_prev, h, T),
+                                                                        rel=1e-12, abs=1e-13)
+    assert corrector(u, g, u_new, g_new, h, r)[0] == pytest.approx(paper_corrector(u, f, f_new, h, T),
+                                                                   rel=1e-12, abs=1e-13)
+
+
+def test_pure_integrator_limit_is_adams_of_order_two():
+    rng = np.random.default_rng(4)
+    u, u_prev, u_new, g, g_prev, g_new = (rng.normal(size=5) for _ in range(6))
+    h, h_prev = 0.01, 0.008
+    zero = np.zeros(5)
+    ab2 = u + h * g + 0.5 * h * (h / h_prev) * (g - g_prev)          # variable-step Adams-Bashforth 2
+    trap = u + 0.5 * h * (g + g_new)                                  # Adams-Moulton 2 (trapezoid)
+    np.testing.assert_array_equal(predictor(u, g, u_prev, g_prev, h, h_prev, zero), ab2)
+    np.testing.assert_allclose(corrector(u, g, u_new, g_new, h, zero), trap, rtol=1e-15, atol=1e-16)
+    # T large but finite: continuous in 1/T (no cancellation of the large T g terms)
+    tiny = np.full(5, 1e-10)
+    np.testing.assert_allclose(predictor(u, g, u_prev, g_prev, h, h_prev, tiny), ab2, rtol=1e-11, atol=1e-12)
+    np.testing.assert_allclose(corrector(u, g, u_new, g_new, h, tiny), trap, rtol=1e-11, atol=1e-12)
+    # and the paper's f-form loses everything there: f = u + T g with T = 1e10 keeps ~6 digits of u
+    fT = 1e10
+    paper = paper_corrector(u, u + fT * g, u_new + fT * g_new, h, fT)
+    assert np.max(np.abs(paper - trap)) > 1e-9
+
+
+@pytest.mark.parametrize("h_over_T", [0.01, 1.0, 100.0])
+def test_linear_lag_with_linear_input_is_integrated_exactly(h_over_T):
+    """T y' + y = a + b t: a straight-line input is what the method assumes, so it is exact at any step."""
+    T, a, b, y0 = 0.05, 1.5, -4.0, 3.0
+    h = h_over_T * T
+    rate = np.array([1.0 / T])
+
+    def g(t, y):
+        return (a + b * t - y) / T
+
+    def exact(t):
+        return a + b * (t - T) + (y0 - a + b * T) * np.exp(-t / T)
+
+    t, y = 0.0, np.array([y0])
+    gy = g(t, y)
+    y_prev = g_prev = None
+    for _ in range(20):
+        yp = predictor(y, gy, y_prev, g_prev, h, h, rate)
+        yc = corrector(y, gy, yp, g(t + h, yp), h, rate)
+        y_prev, g_prev = y, gy
+        t, y = t + h, yc
+        gy = g(t, y)
+        assert y[0] == pytest.approx(exact(t), rel=1e-12, abs=1e-12)
+
+
+def test_time_constants_come_from_the_jacobian_diagonal():
+    m = first()                      # damper d = 10 on inertia2, which carries J2 + ratio^2 J1 = 2 + 100*0.1
+    c = m.compile()
+    y, yp = c.initial_y(0.0)
+    u = c.ode_state(y)
+    st = ConvolutionStepper(OdeProblem(c, c.modes0), 0.0, u, 1.0, np.array([1.0]))
+    np.testing.assert_allclose(st.rate, [0.0, 0.0, 10.0 / 12.0, 0.0], rtol=1e-6)
+    assert np.all(lag_rates([-2.0, 0.0, 3.0]) == [2.0, 0.0, 0.0])
+
+
+class Maxwell(TwoFlangeCompliant):
+    """Spring ``c`` in series with a damper ``d``: ``tau = c (phi_rel - z)``, ``z' = tau / d`` (a device state)."""
+
+    c = Param(check="positive", unit="N m/rad")
+    d = Param(check="positive", unit="N m s/rad")
+    states = {"z": None}
+
+    def law(self, rel, rel_dot):
+        return self.c * (rel - self.z)
+
+    def derivatives(self, e, de):
+        return [self.c * (e[0] - self.z) / self.d]
+
+
+def maxwell_model(c=1e4, d=1.0):
+    m = rm.Model("maxwell")
+    fixed = m.add(Fixed("fixed"))
+    drive = m.add(Torque("drive", tau=Sine(amplitude=1.0, freq_hz=1.0)))
+    body = m.add(Inertia("J", J=1.0, phi0=0.0, w0=0.0))
+    relax = m.add(Maxwell("mx", c=c, d=d))
+    spring = m.add(Spring("spring", c=10.0))
+    m.connect(drive.support, fixed.flange)
+    m.connect(drive.flange, body.flange_a)
+    m.connect(body.flange_b, relax.flange_a)
+    m.connect(relax.flange_b, fixed.flange)
+    m.connect(body.flange_a, spring.flange_a)
+    m.connect(spring.flange_b, fixed.flange)
+    return m
+
+
+def test_device_states_with_a_fast_lag():
+    """The whole ODE state (x, v and device states z) is integrated; z has T = d/c = 1e-4 s, far below the step."""
+    m = maxwell_model()
+    ref = m.simulate(1.0, 0.02, solver="ida", rtol=1e-10, atol=1e-12)
+    res = m.simulate(1.0, 0.02, solver="convolution", rtol=1e-6)
+    for n in ("J.w", "mx.z", "mx.tau"):
+        assert np.max(np.abs(res[n] - ref[n])) < 5e-3 * np.max(np.abs(ref[n])), n
+    # the fixed step is 10x the lag's time constant: explicit RK4 would blow up (h rho ~ 10), this stays bounded
+    res = m.simulate(1.0, 0.02, solver="convolution", h=1e-3)
+    assert np.max(np.abs(res["J.w"] - ref["J.w"])) < 0.02 * np.max(np.abs(ref["J.w"]))
+    with pytest.raises(rm.SimulationError):
+        m.simulate(1.0, 0.02, solver="rk4", h=1e-3)
+
+
+def test_error_follows_the_tolerance():
+    m = first()
+    ref = m.simulate(1.0, 0.01, solver="ida", rtol=1e-11, atol=1e-13)
+    errs = []
+    for rtol in (1e-4, 1e-6):
+        res = m.simulate(1.0, 0.01, solver="convolution", rtol=rtol)
+        errs.append(np.max(np.abs(res["inertia3.w"] - ref["inertia3.w"])))
+        assert res.stats.extra["rejected"] < res.stats.steps
+    # second order: the error per unit step ~ rtol^(2/3); two decades of rtol give ~20x
+    assert errs[1] < errs[0] / 10, errs
+
+
+def test_tolerates_a_jump_that_is_not_declared_as_an_event():
+    """A torque given as a plain callable with a jump (no breakpoint known): step control shrinks the
+    step at the jump and passes it; the result matches the run where the jump is a time event."""
+    t_on = 0.3037
+
+    def build(tau):
+        m = rm.Model("jump")
+        fixed = m.add(Fixed("fixed"))
+        drive = m.add(Torque("drive", tau=tau))
+        body = m.add(Inertia("J", J=2.0, phi0=0.0, w0=0.0))
+        spring = m.add(Spring("spring", c=100.0))
+        m.connect(drive.support, fixed.flange)
+        m.connect(drive.flange, body.flange_a)
+        m.connect(body.flange_b, spring.flange_a)
+        m.connect(spring.flange_b, fixed.flange)
+        return m
+
+    ref = build(Step(height=4.0, start_time=t_on)).simulate(1.0, 0.01, solver="ida", rtol=1e-10, atol=1e-12)
+    res = build(lambda t: 4.0 if t >= t_on else 0.0).simulate(1.0, 0.01, solver="convolution", rtol=1e-7)
+    on_grid = ref.t != t_on                       # the reference also has the breakpoint's two rows
+    np.testing.assert_array_equal(res.t, ref.t[on_grid])
+    err = np.max(np.abs(res["J.w"] - ref["J.w"][on_grid]))
+    assert err < 1e-4 * np.max(np.abs(ref["J.w"])), err
+    assert res.stats.extra["rejected"] > 0        # the jump was felt and handled by step control

@@ -1,0 +1,211 @@
+"""ODE-form solvers (euler, rk4, abm, scipy:*, convolution): accuracy, interface, time and stick/slip events."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import regmech as rm
+from regmech.components import Fixed, Inertia, SpringDamper, Torque
+from regmech.errors import ParameterError, SimulationError
+from regmech.library import coupled_clutches, first
+from regmech.signals import Sine, Step
+from regmech.solvers.ode_driver import OdeProblem, locate_crossing, ode_jacobian_pattern
+
+SCIPY = ["scipy:RK45", "scipy:RK23", "scipy:DOP853", "scipy:Radau", "scipy:BDF", "scipy:LSODA"]
+ALL = ["euler", "rk4", "abm", "convolution"] + SCIPY
+
+
+def chain(n=3, J=1.0, c=1e3, d=1.0, amplitude=10.0, freq_hz=2.0):
+    """n inertias in a row, joined and anchored by spring-dampers, driven by a sine torque on the first."""
+    m = rm.Model(f"chain{n}")
+    fixed = m.add(Fixed("fixed"))
+    drive = m.add(Torque("drive", tau=Sine(amplitude=amplitude, freq_hz=freq_hz)))
+    masses = [m.add(Inertia(f"J{k + 1}", J=J, phi0=0.0, w0=0.0)) for k in range(n)]
+    m.connect(drive.support, fixed.flange)
+    m.connect(drive.flange, masses[0].flange_a)
+    for k in range(n - 1):
+        link = m.add(SpringDamper(f"link{k + 1}", c=c, d=d))
+        m.connect(masses[k].flange_b, link.flange_a)
+        m.connect(link.flange_b, masses[k + 1].flange_a)
+    anchor = m.add(SpringDamper("anchor", c=c, d=d))
+    m.connect(masses[-1].flange_b, anchor.flange_a)
+    m.connect(anchor.flange_b, fixed.flange)
+    return m
+
+
+def max_error(res, ref, names, relative=False):
+    errs = []
+    for n in names:
+        e = np.max(np.abs(res[n] - ref[n]))
+        errs.append(e / np.max(np.abs(ref[n])) if relative else e)
+    return max(errs)
+
+
+@pytest.fixture(scope="module")
+def chain_reference():
+    m = chain()
+    return m, m.simulate(0.5, 0.05, solver="ida", rtol=1e-11, atol=1e-13)
+
+
+CHAIN_SIGNALS = [f"J{k}.{v}" for k in (1, 2, 3) for v in ("phi", "w")]
+
+
+@pytest.mark.parametrize("solver, steps, order", [
+    ("euler", [1e-3, 5e-4, 2.5e-4], 1.0),
+    ("rk4", [1e-2, 5e-3, 2.5e-3], 4.0),
+    ("abm", [5e-3, 2.5e-3, 1.25e-3], 4.0),
+    ("convolution", [2e-3, 1e-3, 5e-4], 2.0),
+])
+def test_order_of_convergence_on_damped_chain(chain_reference, solver, steps, order):
+    m, ref = chain_reference
+    errs = [max_error(m.simulate(0.5, 0.05, solver=solver, h=h), ref, CHAIN_SIGNALS) for h in steps]
+    rates = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    # the last halving is in the asymptotic range for every method
+    assert abs(rates[-1] - order) < 0.2 * order, (solver, errs, rates)
+    assert errs[-1] < errs[0]
+
+
+@pytest.fixture(scope="module")
+def first_reference():
+    m = first()
+    return m, m.simulate(1.0, 1e-2, solver="ida", rtol=1e-11, atol=1e-13)
+
+
+FIRST_SIGNALS = ["inertia1.w", "inertia2.w", "inertia3.w", "inertia1.phi", "inertia3.phi", "spring.tau"]
+
+
+@pytest.mark.parametrize("solver", SCIPY)
+def test_scipy_methods_reach_their_tolerance_on_first(first_reference, solver):
+    m, ref = first_reference
+    err = {rtol: max_error(m.simulate(1.0, 1e-2, solver=solver, rtol=rtol), ref, FIRST_SIGNALS, relative=True)
+           for rtol in (1e-5, 1e-7)}
+    # global error proportional to rtol: on this oscillating model a method's global error is up to a few
+    # hundred times its local tolerance (measured: Radau ~5, DOP853 ~50, RK45 ~250, BDF/LSODA ~200, RK23 ~450)
+    for rtol, e in err.items():
+        assert e < 1000 * rtol, (solver, err)
+    assert err[1e-7] < err[1e-5] / 20, (solver, err)
+
+
+@pytest.mark.parametrize("solver", ALL)
+def test_same_named_signals_and_grid_as_ida(first_reference, solver):
+    m, ref = first_reference
+    opts = {"euler": {"h": 1e-3}, "rk4": {"h": 5e-3}, "abm": {"h": 5e-3}}.get(solver, {"rtol": 1e-5})
+    res = m.simulate(1.0, 1e-2, solver=solver, **opts)
+    assert res.names == ref.names
+    np.testing.assert_array_equal(res.t, ref.t)
+    assert res.stats.solver == solver
+    assert res.stats.steps > 0 and res.stats.rhs_calls >= res.stats.steps
+    assert res.stats.wall_time > 0
+    if solver in ("scipy:Radau", "scipy:BDF"):
+        assert res.stats.jac_calls >= 1
+
+
+def step_model(t_on=0.3037, height=4.0, J=2.0):
+    m = rm.Model("step")
+    fixed = m.add(Fixed("fixed"))
+    drive = m.add(Torque("drive", tau=Step(height=height, start_time=t_on)))
+    body = m.add(Inertia("J", J=J, phi0=0.0, w0=0.0))
+    m.connect(drive.support, fixed.flange)
+    m.connect(drive.flange, body.flange_a)
+    return m
+
+
+@pytest.mark.parametrize("solver", ALL)
+def test_step_torque_is_a_time_event_hit_exactly(solver):
+    t_on, alpha = 0.3037, 2.0                       # 4 N m on 2 kg m^2
+    m = step_model(t_on)
+    opts = {"h": 0.01} if solver in ("euler", "rk4", "abm") else {}
+    res = m.simulate(1.0, 0.1, solver=solver, **opts)
+    rows = np.nonzero(res.t == t_on)[0]
+    assert len(rows) == 2                              # left and right limits
+    a = res["J.a"][rows]
+    assert a[0] == 0.0 and a[1] == pytest.approx(alpha, rel=1e-12)
+    w_exact = alpha * np.maximum(res.t - t_on, 0.0)
+    # the speed is piecewise linear: every method integrates it exactly when the jump is a segment end
+    np.testing.assert_allclose(res["J.w"], w_exact, atol=1e-10)
+    before = res.t < t_on
+    assert np.all(res["J.w"][before] == 0.0)
+    phi_exact = 0.5 * alpha * np.maximum(res.t - t_on, 0.0) ** 2
+    tol = 0.01 if solver == "euler" else 1e-6           # Euler is first order in the angle
+    np.testing.assert_allclose(res["J.phi"], phi_exact, atol=tol)
+
+
+@pytest.fixture(scope="module")
+def clutches_reference():
+    m = coupled_clutches()
+    return m, m.simulate(1.5, 1e-2, solver="ida", rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("solver, opts", [("scipy:DOP853", {"rtol": 1e-8}), ("abm", {"h": 5e-4}),
+                                          ("convolution", {"rtol": 1e-7})])
+def test_stick_slip_events_match_ida_on_coupled_clutches(clutches_reference, solver, opts):
+    m, ref = clutches_reference
+    res = m.simulate(1.5, 1e-2, solver=solver, **opts)
+    assert [(e.component, e.old_mode, e.new_mode) for e in res.events] == \
+        [(e.component, e.old_mode, e.new_mode) for e in ref.events]
+    dt = max(abs(a.t - b.t) for a, b in zip(res.events, ref.events))
+    assert dt < (1e-4 if solver == "convolution" else 1e-6), dt
+    grid = np.linspace(0.0, 1.5, 601)
+    for n in ("J1.w", "J2.w", "J3.w", "J4.w"):
+        err = np.max(np.abs(np.interp(grid, res.t, res[n]) - np.interp(grid, ref.t, ref[n])))
+        assert err < (1e-3 if solver == "convolution" else 1e-5), (n, err)
+    assert res.stats.events == len(ref.events)
+    # every mode change appears as two rows (before and after) with the same time
+    for ev in res.events:
+        assert np.count_nonzero(res.t == ev.t) >= 2
+
+
+@pytest.mark.parametrize("build", [first, coupled_clutches, lambda: chain(4)])
+def test_structural_pattern_covers_the_jacobian_and_leaves_the_model_alone(build):
+    m = build()
+    c = m.compile()
+    before = [M.copy() for M in (c.Sc, c.Gp, c.Gv, c.Gall)]
+    pat = ode_jacobian_pattern(c)
+    for M0, M1 in zip(before, (c.Sc, c.Gp, c.Gv, c.Gall)):
+        assert (M0 != M1).nnz == 0                     # the compiled matrices are untouched
+    y, yp = c.initial_y(0.0)
+    rng = np.random.default_rng(1)
+    u = c.ode_state(y) + rng.normal(size=c.ode_size())
+    modes = c.modes0.copy()
+    if c.mf:
+        modes[:] = 1                                   # sliding: friction forces depend on the speeds
+    f = lambda uu: c.ode_rhs(0.123, uu, modes)         # noqa: E731
+    g0 = f(u)
+    dense = np.array([(f(u + 1e-7 * e) - g0) / 1e-7 for e in np.eye(len(u))]).T
+    outside = np.abs(dense) * (pat.toarray() == 0)
+    assert outside.max() < 1e-6 * max(1.0, np.abs(dense).max())
+    J = OdeProblem(c, modes).jacobian(0.123, u)
+    assert sp.issparse(J)
+    np.testing.assert_allclose(J.toarray(), dense, rtol=1e-4, atol=1e-4 * np.abs(dense).max())
+
+
+def test_explicit_blow_up_is_explained():
+    m = chain(3, c=1e6)
+    with pytest.raises(SimulationError, match="spectral radius"):
+        m.simulate(0.5, 0.05, solver="rk4", h=0.01)
+    with pytest.raises(SimulationError, match="spectral radius"):
+        m.simulate(1.0, 0.05, solver="euler", h=0.005)      # |u| ~ 9^200: finite, but beyond any physics
+
+
+@pytest.mark.parametrize("solver, bad", [("rk4", {"rtol": 1e-6}), ("scipy:RK45", {"h": 1e-3}),
+                                         ("convolution", {"order": 3}), ("euler", {"h": -1.0}),
+                                         ("scipy:BDF", {"rtol": 0.0})])
+def test_bad_options_are_refused(solver, bad):
+    with pytest.raises(ParameterError):
+        chain(2).simulate(0.1, 0.01, solver=solver, **bad)
+
+
+def test_fixed_steps_land_on_output_instants_and_breakpoints():
+    m = step_model(t_on=0.0123)
+    res = m.simulate(0.05, 0.01, solver="rk4", h=0.004)
+    # output interval 0.01 -> 3 steps of 1/300 s; [0.01, 0.0123] and [0.0123, 0.02] are cut separately
+    assert res.stats.steps == 3 + 1 + 2 + 3 * 3
+    assert res.stats.extra["h"] == 0.004
+
+
+def test_locate_crossing_returns_the_crossed_side():
+    root = 0.2
+    f = lambda s: np.cos(10 * s) - np.cos(10 * root)   # noqa: E731  (decreasing through zero at root)
+    b = locate_crossing(f, 0.0, 0.3, f(0.0), f(0.3))
+    assert f(b) <= 0.0
+    assert abs(b - root) < 1e-14
