@@ -211,6 +211,34 @@ def test_interrupted_process_pool_keeps_finished_batches(tmp_path, monkeypatch):
     pd.testing.assert_frame_equal(_numbers(table), _numbers(fresh), check_exact=True)
 
 
+def _crashing_clutches(fn_max, t2=0.4):
+    if fn_max < 0:
+        import os
+        os._exit(3)                      # the worker process dies (as on a segfault), not just the run
+    return coupled_clutches(fn_max=fn_max, t2=t2)
+
+
+def test_runs_lost_with_a_dead_worker_are_recorded_and_rerun_on_resume(tmp_path):
+    out = tmp_path / "study.csv"
+    study = [{"fn_max": 10.0, "t2": 0.3}, {"fn_max": -999.0, "t2": 0.3}, {"fn_max": 20.0, "t2": "0012"}]
+    table = rm.sweep(_crashing_clutches, study[:2], OUTPUTS, executor="process", workers=1, out=out, **FAST)
+    lost = table[table["error"].fillna("").str.startswith("the worker lost")]
+    assert 1 in set(lost["run_id"]) and (table["status"] == "failed").sum() == len(lost)
+    assert "BrokenProcessPool" in lost["error"].iloc[-1]
+
+    def build(fn_max, t2):          # same parameters; this time the bad set is an ordinary failure
+        return coupled_clutches(fn_max=fn_max, t2=float(t2))
+
+    BUILT.clear()
+    again = rm.sweep(lambda **p: BUILT.append(p) or build(**p), study, OUTPUTS, executor="serial", out=out, **FAST)
+    assert [p["fn_max"] for p in BUILT] == [r["fn_max"] for r in study if r["fn_max"] in set(lost["fn_max"]) |
+                                            {20.0}]
+    assert list(again["status"]) == ["ok", "failed", "ok"] and again.loc[1, "error"].startswith("ParameterError")
+    BUILT.clear()
+    rm.sweep(lambda **p: BUILT.append(p) or build(**p), study, OUTPUTS, executor="serial", out=out, **FAST)
+    assert BUILT == []                   # "0012" matched as text, 10.0 as a number
+
+
 def test_parquet_output_resumes(tmp_path):
     pytest.importorskip("pyarrow")
     out = tmp_path / "study.parquet"

@@ -20,11 +20,13 @@ from ..errors import ParameterError
 from .executors import make_backend
 from .outputs import SignalSummary
 from .sampling import runs_from
-from .store import FINISHED, ResultStore, same_parameters
+from .store import FINISHED, ResultStore, parse_row, same_parameters
 from .table import make_table
 from .worker import StudySpec, describe_error
 
 MAX_BATCH = 16
+#: error text of runs whose batch was lost with its worker (rerun on resume, unlike failed runs)
+LOST = "the worker lost this run's batch"
 
 
 def sweep(build: Callable, params, outputs, executor=None, out=None, progress: bool = True, *,
@@ -44,7 +46,8 @@ def sweep(build: Callable, params, outputs, executor=None, out=None, progress: b
               ``concurrent.futures.Executor``. Every executor gives the same numbers.
     out       CSV path (or ``.parquet`` with pyarrow): rows are written as they finish; when
               the file exists, its finished rows whose parameters match are reused, not rerun
-              (``retry_failed=True`` reruns the failed ones).
+              (``retry_failed=True`` reruns the failed ones; runs lost with a crashed worker
+              always run again).
     progress  show a tqdm bar (throughput, time remaining).
     batch_size runs per task sent to a worker (default: up to 16, at least 4 tasks a worker).
     **simulate_options  go to every ``model.simulate``: ``t_end`` (required), ``dt_out``,
@@ -134,14 +137,16 @@ def _resumed_rows(store: ResultStore, runs: list[dict], retry_failed: bool) -> d
                 f"sweep: {store.path} holds run {run_id} with other parameter values "
                 f"({ {k: s.get(k) for k in p} } instead of {p}): it belongs to another study; choose "
                 f"another out path or delete the file")
-        if s.get("status") in FINISHED and not (retry_failed and s.get("status") == "failed"):
-            rows[run_id] = {**s, **p, "run_id": run_id}
+        status, error = s.get("status"), str(s.get("error") or "")
+        lost = error.startswith(LOST)             # the worker died, not the run: compute it again
+        if status in FINISHED and not lost and not (retry_failed and status == "failed"):
+            rows[run_id] = {**parse_row(s), **p, "run_id": run_id}
     return rows
 
 
 def _lost_row(run_id: int, params: dict, exc: BaseException) -> dict:
-    return {"run_id": run_id, **params, "status": "failed",
-            "error": f"the worker lost this run's batch: {describe_error(exc)}", "wall_time": math.nan}
+    return {"run_id": run_id, **params, "status": "failed", "error": f"{LOST}: {describe_error(exc)}",
+            "wall_time": math.nan}
 
 
 def _progress_bar(progress: bool, total: int, backend, skipped: int):

@@ -47,7 +47,7 @@ class ResultStore:
 
     # -- resume ------------------------------------------------------------------------------
     def load(self) -> dict:
-        """Rows already in the file (run id -> row), values as stored (CSV: strings)."""
+        """Rows already in the file: run id -> row with the values as stored (CSV: text)."""
         if not self.path.exists() or self.path.stat().st_size == 0:
             return {}
         if self.parquet:
@@ -62,10 +62,12 @@ class ResultStore:
             raise ParameterError(f"sweep: {self.path} exists but is not a study table (no run_id/status column); "
                                  f"choose another out path or delete the file")
         self.columns = columns
+        stored = {}
         for rec in records:
-            rec = {k: _parse(v) for k, v in rec.items()}
-            self.rows[int(rec["run_id"])] = rec
-        return self.rows
+            # kept as stored (CSV: text) for matching parameters; parse_row() gives the values
+            stored[int(_parse(rec["run_id"]))] = rec
+            self.rows[int(_parse(rec["run_id"]))] = parse_row(rec)
+        return stored
 
     # -- writing ---------------------------------------------------------------------------------
     def add(self, rows: list[dict]) -> None:
@@ -119,13 +121,20 @@ def same_parameters(stored: dict, params: dict) -> bool:
         if name not in stored:
             return False
         a, b = stored[name], value
-        if isinstance(b, (int, float)) and not isinstance(b, bool) and isinstance(a, (int, float)) \
-                and not isinstance(a, bool):
+        if isinstance(b, (int, float)) and not isinstance(b, bool):
+            a = _parse(a)
+            if isinstance(a, bool) or not isinstance(a, (int, float)):
+                return False
             if not (a == b or (math.isnan(a) and math.isnan(b))):
                 return False
-        elif str(a) != str(b):
+        elif str(a) != str(b):       # text, bools and anything else: as written
             return False
     return True
+
+
+def parse_row(stored: dict) -> dict:
+    """A stored row's values as Python values (numbers, None for empty cells, text)."""
+    return {k: _parse(v) for k, v in stored.items()}
 
 
 def _ordered(columns: list[str]) -> list[str]:
