@@ -78,50 +78,52 @@ def sweep(build: Callable, params, outputs, executor=None, out=None, progress: b
              "elapsed": 0.0, "runs_per_second": math.nan, "interrupted": False}
     t0 = time.perf_counter()
     if todo:
-        backend = make_backend(executor, spec, workers)
-        attrs.update(executor=backend.name, workers=backend.workers)
-        size = batch_size or (1 if backend.name == "serial" else
-                              max(1, min(MAX_BATCH, len(todo) // (4 * backend.workers))))
-        batches = [todo[k:k + size] for k in range(0, len(todo), size)]
-        bar = _progress_bar(progress, len(todo), backend, len(rows))
-        failed = 0
-
-        def record(batch, outcome):
-            nonlocal failed
-            new = outcome if isinstance(outcome, list) else [_lost_row(i, p, outcome) for i, p in batch]
-            new = [r for r in new if r["run_id"] not in rows]    # a batch may be harvested twice
-            for r in new:
-                rows[r["run_id"]] = r
-            if store is not None:
-                store.add(new)
-            failed += sum(r["status"] != "ok" for r in new)
-            if bar is not None:
-                if failed:
-                    bar.set_postfix_str(f"failed={failed}", refresh=False)
-                bar.update(len(new))
-
-        try:
-            for batch, outcome in backend.run(batches):
-                record(batch, outcome)
-        except KeyboardInterrupt:
-            attrs["interrupted"] = True
-            backend.cancel()
-            for batch, outcome in backend.harvest():
-                record(batch, outcome)
-        finally:
-            backend.close()
-            if bar is not None:
-                bar.close()
-            if store is not None:
-                store.rewrite(sort=True)
-                store.close()
-        attrs["failed"] = failed
+        _execute(make_backend(executor, spec, workers), todo, rows, store, progress, batch_size, attrs)
     elapsed = time.perf_counter() - t0
     done_now = len(rows) - attrs["skipped"]
     attrs.update(runs=done_now, elapsed=elapsed, runs_per_second=done_now / elapsed if elapsed > 0 else math.nan)
     table = make_table([rows[i] for i in sorted(rows) if i < len(runs)], param_names, attrs)
     _warn_outcome(attrs, rows, len(runs), out)
     return table
+
+
+def _execute(backend, todo: list, rows: dict, store, progress: bool, batch_size, attrs: dict) -> None:
+    """Run ``todo`` on ``backend``; every finished batch goes at once into ``rows``, ``store`` and
+    the progress bar. Ctrl-C: cancel what has not started, keep what finished."""
+    attrs.update(executor=backend.name, workers=backend.workers)
+    size = batch_size or (1 if backend.name == "serial" else
+                          max(1, min(MAX_BATCH, len(todo) // (4 * backend.workers))))
+    batches = [todo[k:k + size] for k in range(0, len(todo), size)]
+    bar = _progress_bar(progress, len(todo), backend, len(rows))
+
+    def record(batch, outcome):
+        new = outcome if isinstance(outcome, list) else [_lost_row(i, p, outcome) for i, p in batch]
+        new = [r for r in new if r["run_id"] not in rows]    # a batch may be harvested twice
+        for r in new:
+            rows[r["run_id"]] = r
+        if store is not None:
+            store.add(new)
+        attrs["failed"] += sum(r["status"] != "ok" for r in new)
+        if bar is not None:
+            if attrs["failed"]:
+                bar.set_postfix_str(f"failed={attrs['failed']}", refresh=False)
+            bar.update(len(new))
+
+    try:
+        for batch, outcome in backend.run(batches):
+            record(batch, outcome)
+    except KeyboardInterrupt:
+        attrs["interrupted"] = True
+        backend.cancel()
+        for batch, outcome in backend.harvest():
+            record(batch, outcome)
+    finally:
+        backend.close()
+        if bar is not None:
+            bar.close()
+        if store is not None:
+            store.rewrite(sort=True)
+            store.close()
 
 
 def _resumed_rows(store: ResultStore, runs: list[dict], retry_failed: bool) -> dict:
