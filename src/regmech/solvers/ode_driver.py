@@ -46,8 +46,8 @@ BLOW_UP = 1e100
 class OdeProblem:
     """``u' = g(t, u)`` of a compiled system for the current modes, counting evaluations.
 
-    ``modes`` is changed in place of a new object after a mode change, so the
-    counters run over the whole simulation.
+    The driver reassigns ``modes`` after each mode change and keeps the
+    object, so the counters run over the whole simulation.
     """
 
     def __init__(self, compiled, modes):
