@@ -6,6 +6,9 @@
 
 from .chains import chain_drive, train
 from .msl import coupled_clutches, first, one_way_clutch
+from .vehicle import vehicle_launch
+from .excavator import excavator_swing
+from .gearshift import gear_shift
 
 SCENES = {
     "first": first,
@@ -15,5 +18,9 @@ SCENES["coupled_clutches"] = coupled_clutches
 SCENES["one_way_clutch"] = one_way_clutch
 SCENES["train"] = train
 SCENES["chain_drive"] = chain_drive
+SCENES["vehicle_launch"] = vehicle_launch
+SCENES["excavator_swing"] = excavator_swing
+SCENES["gear_shift"] = gear_shift
 
-__all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch"]
+__all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch", "vehicle_launch",
+           "excavator_swing", "gear_shift"]
