@@ -20,6 +20,7 @@ def register(name):
 def _load():
     from . import ida  # noqa: F401
     from . import convolution, explicit, scipy_ivp  # noqa: F401
+    from . import expm  # noqa: F401
 
 
 def simulate(model, t_end, dt_out=None, solver="ida", t_start=0.0, **options):

@@ -1,0 +1,622 @@
+"""The matrix numerical-analytical integrator of SOURCES.md 002: ``expm``.
+
+For a *linear* model (springs, dampers, inertias, ideal gears, rigid shafts,
+force sources with any signal, Position/Speed sources, friction devices with
+constant coefficients) the motion in the independent coordinates ``y`` of
+the current friction modes (``compile.linear``: ``x = T y + x_off``) obeys
+
+    M y'' + B y' + C y = F s(t)                                          (1)
+
+with constant M, B, C and a few scalar *signals* ``s(t)`` times fixed
+columns F (see ``Forcing``): a constant, the offsets of the eliminated
+coordinates, every device force that changes in time (sources), the
+kinematic excitation (``-K_g dg - B_g g' - M_g g''`` of moving supports) and
+the forces of sliding friction devices.
+
+Scaled first-order form (SOURCES.md 002 and its measured notes): with the
+Cholesky factor ``M = L L^T`` (``L = M^1/2`` for a diagonal M) and
+``w = sqrt(||C^||_inf)`` [1/s], an upper bound of the highest natural
+frequency,
+
+    q = [L^T y', w L^T y],     q' = A q + b(t),
+    A = [[-F^, -C^/w], [w I, 0]],   F^ = L^-1 B L^-T,   C^ = L^-1 C L^-T,
+    b = [L^-1 F s(t); 0].
+
+Scaling the position half by w keeps ``||A||`` near the highest frequency
+(instead of its square), which saves about six doublings and their
+round-off. On each step of length h the signals are replaced by the
+polynomial of degree p - 1 (``order_p`` = p = 1, 2, 3) through their values
+at the Gauss-Legendre points of the step (p = 1: the midpoint), and the step
+is exact for that forcing::
+
+    q_{j+1} = D0 q_j + sum_k D_k W beta_k       (expm_coefficients)
+
+The D's are computed once per (modes, h) by Taylor start and step doubling
+and reused; only the columns D_k W of the inputs are formed. A forcing that
+is a polynomial of degree < p on every step (steps, ramps, tables with p = 2)
+is integrated exactly, at any step size, to the round-off floor; a smooth
+one (a sine) with the order of the Gauss fit (2p for slow forcing).
+
+Storage: dense D0 for small models; above ``SPARSE_FROM`` independent
+coordinates (and a diagonal mass matrix) E = D0 - I is a scipy CSR matrix
+with a drop tolerance of 1e-17 (its entries decay super-exponentially
+beyond the distance a wave travels in one step, so long chains stay sparse).
+
+Stick/slip: the model is linear between mode changes. The shared ODE-form
+driver (``ode_driver``) checks the friction event functions after each step
+and locates a crossing on ``interpolate``, which here is the *exact* flow of
+the step (the D's recomputed for the sub-step), then runs the mode logic
+(``settle``); the D's of each mode set are cached.
+
+Options: ``h`` [s] the step (default ``dt_out``; output instants,
+breakpoints of the signals and ``t_end`` are hit exactly, cutting an
+interval into equal steps), ``order_p`` (1..3, default 2), ``taylor_r``
+(default: the cheapest order for ``tol``), ``tol`` (target of the
+truncation error model, default the unit round-off), ``sparse`` (None:
+automatic), ``drop_tol`` (sparse path), ``max_events``, ``chatter_window``,
+``chatter_count``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+
+from ..errors import ParameterError, RegmechError, SimulationError, StructureError
+from . import register
+from .expm_coefficients import DROP_TOL, UNIT_ROUNDOFF, coefficients, fit_matrix, fit_nodes
+from .ode_driver import KnotClock, Stepper, simulate_ode
+
+#: independent coordinates from which E is kept sparse (when the mass matrix is diagonal)
+SPARSE_FROM = 200
+#: coordinates up to which T and P are dense arrays
+DENSE_MAPS_UPTO = 64
+#: propagators kept per mode set (one per distinct step length)
+CACHE_SIZE = 8
+#: Gauss-Legendre points for integrating a prescribed speed to a displacement
+SPEED_QUADRATURE = 8
+
+
+# ===================================================================== linearity
+def nonlinear_components(c, t_start: float, t_end: float, samples: int = 48) -> list[str]:
+    """Names (``"Class 'name'"``) of the devices whose laws are not linear with constant coefficients.
+
+    Compliant devices: a class whose Jacobian depends on its parameters only
+    (``Template.affine``) is linear; for any other class the Jacobian is
+    evaluated for all instances at once at ``samples`` random states
+    (magnitudes spread from 1e-6 to 1e4, both signs, so dead zones and kinks
+    are straddled) and times in ``[t_start, t_end]``; an instance whose
+    entries change is reported. Friction devices: the kinetic capacity must
+    not depend on the sliding speed (constant mu; a time-varying normal
+    force is fine: it is a force input). Internal states (first-order
+    devices) are reported too: the second-order form cannot hold them.
+    """
+    bad: list[str] = []
+    rng = np.random.default_rng(20240611)
+    times = np.concatenate([[t_start, t_end], rng.uniform(t_start, t_end, samples)])
+    for g in c.groups:
+        tpl = g.tpl
+        if tpl.states:
+            bad += [f"{type(d).__name__} '{d.name}'" for d in g.devices]
+            continue
+        if tpl.affine or not tpl.jac_entries:
+            continue
+        nvar = 2 * tpl.k
+        ref = None
+        changed = np.zeros(g.n, bool)
+        for s in range(samples + 1):
+            if s == 0:
+                variables = [np.zeros(g.n) for _ in range(nvar)]
+            else:
+                scale = 10.0 ** rng.uniform(-6, 4, size=(nvar, 1))
+                variables = list(rng.standard_normal((nvar, g.n)) * scale)
+            with np.errstate(all="ignore"):
+                out = g.call(tpl.jac_fn, variables, float(times[s % len(times)]), False)
+                vals = np.array([np.broadcast_to(np.asarray(o, float), (g.n,)) for o in out])
+            if ref is None:
+                ref = vals.copy()
+                continue
+            tol = 1e-9 * (np.abs(ref) + np.abs(vals)) + 1e-300
+            changed |= np.any(~(np.abs(vals - ref) <= tol), axis=0)
+        bad += [f"{type(d).__name__} '{d.name}'" for d, ch in zip(g.devices, changed) if ch]
+    if c.mf:
+        speeds = (0.0, 1e-6, 1e-3, 0.1, 1.0, 10.0, 1e3, 1e6)
+        for dev in c.friction.devices:
+            caps = [dev.kinetic(w, t_start) for w in speeds]
+            if any(abs(d) > 0 for _, d in caps) or any(abs(v - caps[0][0]) > 1e-12 * (1 + abs(caps[0][0]))
+                                                       for v, _ in caps):
+                bad.append(f"{type(dev).__name__} '{dev.name}'")
+    return bad
+
+
+def check_linear(c, t_start: float, t_end: float) -> None:
+    """Raise ``SimulationError`` naming the components that keep the model from being linear."""
+    bad = nonlinear_components(c, t_start, t_end)
+    if bad:
+        shown = ", ".join(bad[:12]) + (f" and {len(bad) - 12} more" if len(bad) > 12 else "")
+        raise SimulationError(
+            f"solver 'expm' integrates linear models only (constant mass, damping and stiffness matrices), but in "
+            f"model '{c.model.name}' {shown} {'has a law' if len(bad) == 1 else 'have laws'} whose force derivatives "
+            f"change with the state or time (nonlinear or time-varying stiffness/damping, speed-dependent friction, "
+            f"dead zones) or internal states. Use solver='ida' or a scipy solver for this model, or replace these "
+            f"components by linear ones (Spring, Damper, SpringDamper, Clutch with constant mu).")
+
+
+# ======================================================================= forcing
+class Forcing:
+    """The columns F and signals s(t) of (1) for one mode set.
+
+    Signals, in order: ``1`` (constant forces: preloads, constant sources,
+    stiffness times the device offsets ``e0``); the offsets of the
+    eliminated coordinates at the segment start (stiffness coupling of a
+    dependent coordinate into the independent ones, constant on a segment);
+    the force of every compliant row whose law has a time-varying part
+    ``tau_r(0, 0, t)`` (sources; the law is affine, so the rest is in C, B);
+    per kinematic input its displacement since the segment start ``dg``, its
+    rate ``g'`` and acceleration ``g''`` (columns ``-K_g, -B_g, -M_g``); the
+    force of each sliding friction device (columns ``-(G_f T)^T``).
+    """
+
+    def __init__(self, c, lin, modes, dep, t_samples):
+        self.c = c
+        st = c.structure
+        ST = lin.ST.tocsr()                       # compliant rows over y
+        Kc = lin.Kc.tocsr()
+        nq = ST.shape[1]
+        left = False
+        # --- device offsets tau(0, 0, t): constant rows versus rows that change in time
+        self.varying_groups = []
+        const_tau = np.zeros(c.Sc.shape[0])
+        varying_rows = []
+        for g in c.groups:
+            zeros = [np.zeros(g.n)] * (2 * g.tpl.k)
+            offs = self._offsets(g, zeros, t_samples[0], left)
+            varies = not g.inputs_constant or (g.tpl.affine and g.tpl.offset_uses_time)
+            if not g.tpl.affine and not varies:
+                varies = any(not np.array_equal(offs, self._offsets(g, zeros, float(t), left)) for t in t_samples[1:])
+            if varies:
+                self.varying_groups.append((g, zeros, len(varying_rows)))
+                for r in range(g.tpl.k):
+                    varying_rows.extend(g.row_index[:, r])
+            else:
+                for r in range(g.tpl.k):
+                    const_tau[g.row_index[:, r]] = offs[r]
+        self.varying_rows = np.asarray(varying_rows, int)
+        cols = []
+        names = []
+        # 1: constant
+        f_const = -(ST.T @ (const_tau + Kc @ c.e0c))
+        cols.append(sp.csr_matrix(f_const.reshape(-1, 1)))
+        names.append("constant")
+        # offsets of the dependent coordinates: -ST^T Kc S[:, d]
+        Phi = (-(ST.T @ (Kc @ c.Sc[:, dep]))).tocsc() if len(dep) else sp.csc_matrix((nq, 0))
+        used = np.nonzero(np.diff(Phi.indptr))[0]
+        self.dep_used = np.asarray(dep, int)[used]
+        cols.append(Phi[:, used])
+        names += [f"offset {st.coord_names[k]}" for k in self.dep_used]
+        # time-varying device forces
+        cols.append(-(ST[self.varying_rows].T) if len(self.varying_rows) else sp.csr_matrix((nq, 0)))
+        names += [f"force row {r}" for r in self.varying_rows]
+        # kinematic inputs
+        from ..compile.linear import _kinematic_rows
+        self.kin_rows = np.asarray(_kinematic_rows(st), int)
+        self.n_pos = len(st.position)
+        ng = len(self.kin_rows)
+        if ng:
+            cols += [-sp.csr_matrix(lin.K_g), -sp.csr_matrix(lin.B_g), -sp.csr_matrix(lin.M_g)]
+            names += [f"{lvl} {nm}" for lvl in ("dg", "g'", "g''") for nm in lin.kinematic_names]
+        # sliding friction
+        self.sliding = np.zeros(0, int)
+        self.friction_devices = c.friction.devices if c.mf else []
+        if c.mf:
+            self.sliding = np.nonzero(np.isin(np.asarray(modes), (-1, 1)))[0]
+            if len(self.sliding):
+                GfT = (c.Gf[self.sliding] @ lin.T).tocsr()
+                cols.append(-(GfT.T))
+                names += [f"friction {c.friction.devices[j].name}" for j in self.sliding]
+        self.F = sp.hstack(cols).tocsr()
+        self.names = names
+        self.n_dep = len(self.dep_used)
+        self.ng = ng
+        self.modes = np.asarray(modes, int)
+
+    @staticmethod
+    def _offsets(g, zeros, t, left):
+        out = g.call(g.tpl.res_fn, zeros, t, left)
+        return np.array([np.broadcast_to(np.asarray(out[r], float), (g.n,)) for r in range(g.tpl.k)])
+
+    @property
+    def size(self) -> int:
+        return self.F.shape[1]
+
+    def values(self, t: float, seg: "Segment", dg_speed: np.ndarray) -> np.ndarray:
+        """s(t) on the current segment; ``dg_speed`` the displacements of the Speed inputs since its start."""
+        c = self.c
+        parts = [np.ones(1), seg.dep_offsets]
+        if self.varying_groups:
+            vals = np.empty(len(self.varying_rows))
+            for g, zeros, start in self.varying_groups:
+                offs = self._offsets(g, zeros, t, t >= c._t_right)
+                vals[start:start + offs.size] = offs.ravel()
+            parts.append(vals)
+        if self.ng:
+            parts.append(self.kinematics(t, seg, dg_speed))
+        if len(self.sliding):
+            # constant coefficients: the kinetic force mode * tau_k does not depend on the sliding speed
+            left = t >= c._t_right
+            parts.append(np.array([self.modes[j] * self.friction_devices[j].kinetic(0.0, t, left)[0]
+                                   for j in self.sliding]))
+        return np.concatenate(parts)
+
+    def kinematics(self, t, seg, dg_speed):
+        """[dg, g', g''] of every kinematic input at t (dg: since the segment start)."""
+        gp, gv = self.c._refs(t)
+        dg = np.empty(self.ng)
+        g1 = np.empty(self.ng)
+        g2 = np.empty(self.ng)
+        si = 0
+        for i, row in enumerate(self.kin_rows):
+            if row < self.n_pos:
+                dg[i] = gp[0, row] - seg.g_start[i]
+                g1[i], g2[i] = gp[1, row], gp[2, row]
+            else:
+                dg[i] = dg_speed[si]
+                g1[i], g2[i] = gv[0, row - self.n_pos], gv[1, row - self.n_pos]
+                si += 1
+        return np.concatenate([dg, g1, g2])
+
+    def rates(self, t):
+        """g' of the kinematic inputs at t (for the velocities of the driven coordinates)."""
+        gp, gv = self.c._refs(t)
+        return np.array([gp[1, r] if r < self.n_pos else gv[0, r - self.n_pos] for r in self.kin_rows])
+
+    @property
+    def speed_inputs(self) -> np.ndarray:
+        return np.nonzero(self.kin_rows >= self.n_pos)[0]
+
+    def speed_values(self, t) -> np.ndarray:
+        gp, gv = self.c._refs(t)
+        return gv[0, self.kin_rows[self.kin_rows >= self.n_pos] - self.n_pos]
+
+
+class Segment:
+    """Reference values of one segment (from one (re)start of the stepper)."""
+
+    def __init__(self, dep_offsets, g_start):
+        self.dep_offsets = dep_offsets
+        self.g_start = g_start
+
+
+# =================================================================== mode system
+class ModeSystem:
+    """Everything about one friction mode set: matrices, scaling, forcing columns, propagators."""
+
+    def __init__(self, c, modes, t, x, v, options):
+        from ..compile.linear import linearize
+        self.c = c
+        try:
+            lin = linearize(c, t=t, modes=modes, at=(x, v), sparse=True)
+        except StructureError as exc:
+            raise SimulationError(f"solver 'expm': {exc}") from None
+        st = c.structure
+        index = {name: k for k, name in enumerate(st.coord_names)}
+        if len(index) != len(st.coord_names):      # pragma: no cover - the structure names coordinates uniquely
+            raise SimulationError("solver 'expm': coordinate names are not unique")
+        self.indep = np.array([index[nm] for nm in lin.coords], int)
+        self.dep = np.setdiff1d(np.arange(c.n), self.indep)
+        # small models: dense maps back to all coordinates (a sparse product costs more than it saves)
+        small = c.n <= DENSE_MAPS_UPTO
+        self.T = lin.T.toarray() if small else lin.T.tocsr()
+        self.P = lin.P.toarray() if small else lin.P.tocsr()
+        self.nq = nq = lin.n
+        self.N = 2 * nq
+        self.options = options
+        t_samples = [t, options["t_end"]] + list(np.linspace(t, options["t_end"], 5)[1:-1])
+        self.forcing = Forcing(c, lin, modes, self.dep, t_samples)
+        M, B, C = (sp.csr_matrix(X) for X in (lin.M, lin.B, lin.C))
+        mdiag = M.diagonal()
+        diagonal = (M - sp.diags(mdiag)).count_nonzero() == 0
+        if np.any(mdiag <= 0):
+            raise SimulationError(f"solver 'expm': the mass matrix of model '{c.model.name}' is singular "
+                                  f"(a coordinate without mass); give every moving node a mass")
+        want_sparse = options["sparse"]
+        self.sparse = (nq >= SPARSE_FROM if want_sparse is None else bool(want_sparse)) and diagonal
+        if self.sparse:
+            s = 1.0 / np.sqrt(mdiag)
+            Fh = (sp.diags(s) @ B @ sp.diags(s)).tocsr()
+            Ch = (sp.diags(s) @ C @ sp.diags(s)).tocsr()
+            self._L = ("diag", np.sqrt(mdiag))
+            Win_top = sp.diags(s) @ self.forcing.F
+        else:
+            Md = M.toarray()
+            if diagonal:
+                self._L = ("diag", np.sqrt(mdiag))
+                s = 1.0 / np.sqrt(mdiag)
+                Fh = s[:, None] * B.toarray() * s[None, :]
+                Ch = s[:, None] * C.toarray() * s[None, :]
+            else:
+                try:
+                    Lc = la.cholesky(Md, lower=True)
+                except la.LinAlgError:
+                    raise SimulationError(f"solver 'expm': the mass matrix of model '{c.model.name}' is not "
+                                          f"positive definite") from None
+                self._L = ("full", Lc)
+                Fh = self._l_inv(self._l_inv(B.toarray()).T).T
+                Ch = self._l_inv(self._l_inv(C.toarray()).T).T
+                Fh = 0.5 * (Fh + Fh.T)
+                Ch = 0.5 * (Ch + Ch.T)
+            Win_top = self._l_inv(self.forcing.F.toarray())
+        c_norm = float(abs(Ch).sum(axis=1).max()) if nq else 0.0
+        f_norm = float(abs(Fh).sum(axis=1).max()) if nq else 0.0
+        # w: an upper bound of the highest natural frequency (Gershgorin); without springs any rate
+        # scale works (A is then nilpotent or first order), the damping rate or 1/s
+        self.w = math.sqrt(c_norm) if c_norm > 0 else (f_norm if f_norm > 0 else 1.0)
+        w = self.w
+        if self.sparse:
+            self.A = sp.bmat([[-Fh, -Ch / w], [w * sp.identity(nq), None]], format="csr")
+            self.Win = np.vstack([np.asarray(Win_top.toarray()), np.zeros((nq, Win_top.shape[1]))])
+        else:
+            self.A = np.block([[-Fh, -Ch / w], [w * np.eye(nq), np.zeros((nq, nq))]])
+            self.Win = np.vstack([Win_top, np.zeros((nq, Win_top.shape[1]))])
+        self.nu = float(abs(self.A).sum(axis=1).max()) if nq else 0.0
+        self.p = options["order_p"]
+        self.Vinv = fit_matrix(self.p)
+        self.nodes = fit_nodes(self.p)
+        self._cache: OrderedDict = OrderedDict()
+        self.setups = 0
+        self.setup_time = 0.0
+        self.last_stats: dict = {}
+
+    # ------------------------------------------------------------- scaling
+    def _l_inv(self, X):
+        kind, L = self._L
+        if kind == "diag":
+            return X / L.reshape((-1,) + (1,) * (np.ndim(X) - 1))
+        return la.solve_triangular(L, X, lower=True)
+
+    def _lt_inv(self, X):
+        kind, L = self._L
+        if kind == "diag":
+            return X / L
+        return la.solve_triangular(L, X, lower=True, trans="T")
+
+    def _lt(self, X):
+        kind, L = self._L
+        return L * X if kind == "diag" else L.T @ X
+
+    def state(self, y, yd) -> np.ndarray:
+        """q = [L^T y', w L^T y]."""
+        return np.concatenate([self._lt(yd), self.w * self._lt(y)])
+
+    def coordinates(self, q):
+        """(y, y') from q."""
+        nq = self.nq
+        return self._lt_inv(q[nq:]) / self.w, self._lt_inv(q[:nq])
+
+    # --------------------------------------------------------- propagators
+    def propagator(self, h: float, cache: bool = True) -> "Propagator":
+        key = float(f"{h:.12e}")
+        prop = self._cache.get(key) if cache else None
+        if prop is not None:
+            self._cache.move_to_end(key)
+            return prop
+        import time
+        t0 = time.perf_counter()
+        opts = self.options
+        coef = coefficients(self.A, self.Win, h, self.p, nu=self.nu, tol=opts["tol"], r=opts["taylor_r"],
+                            drop_tol=opts["drop_tol"])
+        prop = Propagator(coef, self.Vinv)
+        self.setups += 1
+        self.setup_time += time.perf_counter() - t0
+        self.last_stats = coef.stats
+        if cache:
+            self._cache[key] = prop
+            if len(self._cache) > CACHE_SIZE:
+                self._cache.popitem(last=False)
+        return prop
+
+
+class Propagator:
+    """One step of length h: ``q_new = q + E q + sum_i H_i s(t + sigma_i h)``.
+
+    ``G[k-1] = D_k W / h^(k-1)`` act on the coefficients of the fitted
+    polynomial in the normalised time ``sigma = s/h``; ``H`` folds the fit
+    (``V^-1``) into them, so a step takes the signal values at the nodes.
+    """
+
+    def __init__(self, coef, Vinv):
+        self.h = coef.h
+        self.E = coef.E
+        p = len(coef.DW)
+        self.G = [coef.DW[k] / coef.h ** k for k in range(p)]
+        self.H = [sum(Vinv[k, i] * self.G[k] for k in range(p)) for i in range(p)]
+        self.Hcat = np.hstack(self.H)
+        self.coef = coef
+
+    def step(self, q, node_values):
+        """node_values: p x n_sig signal values at the fit nodes."""
+        return q + self.E @ q + self.Hcat @ np.ravel(node_values)
+
+    def step_poly(self, q, beta, scale):
+        """Step with polynomial coefficients ``beta`` (p x n_sig) of ``sigma^(k-1)``, each scaled by ``scale^(k-1)``."""
+        out = q + self.E @ q
+        for k, G in enumerate(self.G):
+            out = out + G @ (beta[k] * scale ** k)
+        return out
+
+
+# ======================================================================= stepper
+class ExpmStepper(Stepper):
+    """Fixed steps of at most h on one segment, exact for the fitted forcing."""
+
+    def __init__(self, engine, problem, t0, u0, t_bound, knots):
+        self.engine = engine
+        c = self.c = problem.c
+        modes = problem.modes
+        self.ms = engine.mode_system(modes, t0, u0)
+        ms, fo = self.ms, self.ms.forcing
+        x, v, z = c.ode_lift(t0, u0, modes)
+        y, yd = x[ms.indep], v[ms.indep]
+        x_off = x - ms.T @ y
+        g_start = np.zeros(fo.ng)
+        if fo.ng:
+            gp, _ = c._refs(t0)
+            for i, row in enumerate(fo.kin_rows):
+                if row < fo.n_pos:
+                    g_start[i] = gp[0, row]
+        self.seg = Segment(x_off[fo.dep_used], g_start)
+        self.x_off = x_off
+        self.t = self.t_old = float(t0)
+        self.q = self.q_old = ms.state(y, yd)
+        self.n_speed = len(fo.speed_inputs)
+        self._no_speed = np.zeros(self.n_speed)
+        self.dg_speed = self.dg_speed_old = self._no_speed
+        self.u = np.array(u0, float)
+        self.u_old = self.u
+        self.clock = KnotClock(t0, knots, t_bound, engine.h)
+        self.nsteps = self.nrejected = self.njev = 0
+        self._step_beta = None
+        self._interp = 0
+
+    # --------------------------------------------------------------- helpers
+    def _speed_displacement(self, t_from, t_to):
+        """Integral of the prescribed speeds over [t_from, t_to] (Gauss-Legendre)."""
+        fo = self.ms.forcing
+        if not self.n_speed or t_to == t_from:
+            return self._no_speed
+        x, wq = np.polynomial.legendre.leggauss(SPEED_QUADRATURE)
+        half = 0.5 * (t_to - t_from)
+        return half * sum(wi * fo.speed_values(t_from + half * (xi + 1.0)) for xi, wi in zip(x, wq))
+
+    def _node_values(self, t, h):
+        ms, fo = self.ms, self.ms.forcing
+        vals = np.empty((ms.p, fo.size))
+        for i, s in enumerate(ms.nodes):
+            tn = t + s * h
+            dgs = self.dg_speed + self._speed_displacement(t, tn)
+            vals[i] = fo.values(tn, self.seg, dgs)
+        return vals
+
+    def _to_u(self, t, q, dg_speed):
+        """The ODE state [x_K, v_K] of the driver from q (all coordinates through T, P)."""
+        ms, fo, c = self.ms, self.ms.forcing, self.c
+        y, yd = ms.coordinates(q)
+        x = ms.T @ y + self.x_off
+        v = ms.T @ yd
+        if fo.ng:
+            dg = fo.kinematics(t, self.seg, dg_speed)[:fo.ng]
+            x = x + ms.P @ dg
+            v = v + ms.P @ fo.rates(t)
+        return np.concatenate([x[c.Kx], v[c.Kv]])
+
+    # ------------------------------------------------------------------ step
+    def step(self):
+        h, t_new = self.clock.next_step(self.t)
+        prop = self.ms.propagator(h)
+        vals = self._node_values(self.t, h)
+        q_new = prop.step(self.q, vals)
+        dg_new = self.dg_speed + self._speed_displacement(self.t, t_new)
+        self.t_old, self.q_old, self.u_old, self.dg_speed_old = self.t, self.q, self.u, self.dg_speed
+        self._step_h, self._step_beta = h, self.ms.Vinv @ vals
+        self.t, self.q, self.dg_speed = t_new, q_new, dg_new
+        self.u = self._to_u(t_new, q_new, dg_new)
+        self.nsteps += 1
+
+    def interpolate(self, tq):
+        """The exact flow of the last step (same fitted forcing) at t_old <= tq <= t."""
+        if tq == self.t:
+            return self.u
+        if tq == self.t_old:
+            return self.u_old
+        tau = tq - self.t_old
+        prop = self.ms.propagator(tau, cache=False)
+        self._interp += 1
+        q = prop.step_poly(self.q_old, self._step_beta, tau / self._step_h)
+        dg = self.dg_speed_old + self._speed_displacement(self.t_old, tq)
+        return self._to_u(tq, q, dg)
+
+    def stats(self):
+        return {"interpolation_setups": self._interp}
+
+
+class ExpmEngine:
+    """Mode systems (cached per mode set) and options of one simulation."""
+
+    def __init__(self, c, h, options):
+        self.c = c
+        self.h = h
+        self.options = options
+        self.systems: dict = {}
+
+    def mode_system(self, modes, t, u) -> ModeSystem:
+        key = tuple(int(m) for m in modes)
+        ms = self.systems.get(key)
+        if ms is None:
+            x, v, _ = self.c.ode_lift(t, u, modes)
+            ms = self.systems[key] = ModeSystem(self.c, modes, t, x, v, self.options)
+        return ms
+
+    def stats(self) -> dict:
+        out = {"mode_sets": len(self.systems),
+               "setups": sum(ms.setups for ms in self.systems.values()),
+               "setup_time": sum(ms.setup_time for ms in self.systems.values())}
+        if self.systems:
+            ms = next(iter(self.systems.values()))
+            out.update({"sparse": ms.sparse, "w": ms.w, "nu": ms.nu, "inputs": ms.forcing.size})
+            out.update({k: v for k, v in ms.last_stats.items()})
+        return out
+
+
+def _check_options(h, order_p, taylor_r, tol, drop_tol, unused):
+    if unused:
+        raise ParameterError(f"solver 'expm' takes the options h, order_p, taylor_r, tol, sparse, drop_tol, "
+                             f"max_events, chatter_window, chatter_count; got unknown {sorted(unused)}")
+    if h is not None and not (isinstance(h, (int, float)) and not isinstance(h, bool) and math.isfinite(h) and h > 0):
+        raise ParameterError(f"solver 'expm': the step h must be a positive number [s], got {h!r}")
+    if order_p not in (1, 2, 3) or isinstance(order_p, bool):
+        raise ParameterError(f"solver 'expm': order_p (number of forcing polynomial coefficients per step) must "
+                             f"be 1, 2 or 3, got {order_p!r}")
+    if taylor_r is not None and (not isinstance(taylor_r, int) or isinstance(taylor_r, bool)
+                                 or not 1 <= taylor_r <= 18):
+        raise ParameterError(f"solver 'expm': taylor_r must be an integer 1..18 or None, got {taylor_r!r}")
+    if not (isinstance(tol, (int, float)) and 0 < tol < 1):
+        raise ParameterError(f"solver 'expm': tol must lie in (0, 1), got {tol!r}")
+    if not (isinstance(drop_tol, (int, float)) and 0 <= drop_tol < 1e-6):
+        raise ParameterError(f"solver 'expm': drop_tol must lie in [0, 1e-6), got {drop_tol!r}")
+
+
+@register("expm")
+def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2, taylor_r=None,
+                  tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, max_events=100000, chatter_window=None,
+                  chatter_count=50, **unused):
+    """The step-doubling matrix exponential integrator for linear models (see regmech.solvers.expm)."""
+    _check_options(h, order_p, taylor_r, tol, drop_tol, unused)
+    c = model.compile()
+    if isinstance(t_start, (int, float)) and isinstance(t_end, (int, float)) and t_end > t_start:
+        check_linear(c, float(t_start), float(t_end))
+    step = h
+    if step is None:
+        step = dt_out if dt_out is not None else ((t_end - t_start) / 500.0 if t_end > t_start else 1.0)
+    options = {"order_p": order_p, "taylor_r": taylor_r, "tol": float(tol), "sparse": sparse,
+               "drop_tol": float(drop_tol), "t_end": float(t_end)}
+    engine = ExpmEngine(c, float(step), options)
+
+    def make(problem, t0, u0, t_bound, knots):
+        return ExpmStepper(engine, problem, t0, u0, t_bound, knots)
+
+    try:
+        res = simulate_ode(model, "expm", make, t_start, t_end, dt_out, max_events=max_events,
+                           chatter_window=chatter_window, chatter_count=chatter_count)
+    except RegmechError:
+        raise
+    res.stats.extra.update(engine.stats())
+    res.stats.extra["h"] = float(step)
+    res.stats.extra["order_p"] = order_p
+    return res
+
+
+__all__ = ["simulate_expm", "check_linear", "nonlinear_components", "ModeSystem", "Propagator", "Forcing"]
