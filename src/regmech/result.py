@@ -37,7 +37,7 @@ class Stats:
     solver: str = ""
     wall_time: float = 0.0
     compile_time: float = 0.0
-    steps: int = 0
+    steps: int | None = 0       # None: the solver does not report it (IDA through scikit-sundae)
     rhs_calls: int = 0
     jac_calls: int = 0
     segments: int = 0
@@ -45,7 +45,8 @@ class Stats:
     extra: dict = field(default_factory=dict)
 
     def __str__(self):
-        return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms, {self.steps} steps, {self.rhs_calls} residual/RHS "
+        steps = "? steps" if self.steps is None else f"{self.steps} steps"
+        return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms, {steps}, {self.rhs_calls} residual/RHS "
                 f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events")
 
 
