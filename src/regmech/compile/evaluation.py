@@ -21,6 +21,9 @@ folded into ``const`` and ``w`` the weights of nonlinear classes and friction.
 
 Below about ``DENSE_MAX`` matrix entries dense matrices are used: for tiny
 models a dense product costs less than sparse bookkeeping.
+
+The plans keep work buffers, so one compiled system serves one integration
+at a time (use one compiled system per thread).
 """
 
 from __future__ import annotations
