@@ -11,11 +11,12 @@ from .errors import (ChatteringError, ModelError, ParameterError, RegmechError, 
                      RegularityWarning, SimulationError, StructureError, UnknownFlangeError)
 from .model import Model
 from .result import Event, Result, Stats
+from .scene import Scene
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Model", "Result", "Event", "Stats", "signals",
+    "Model", "Scene", "Result", "Event", "Stats", "signals",
     "Component", "Body", "Ground", "Device", "Param", "Subsystem",
     "RegmechError", "ParameterError", "ModelError", "UnknownFlangeError", "RegularityError",
     "StructureError", "SimulationError", "ChatteringError", "RegularityWarning",
