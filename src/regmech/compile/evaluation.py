@@ -101,6 +101,7 @@ class EvaluationPlan:
         self.buf[self.one] = 1.0
         self.L = self._residual_matrix(c, linear_terms, kterms)
         self._build_kernel_arguments(c)
+        self._build_device_outputs(c, kterms)
 
     # ------------------------------------------------------------------ build
     def _residual_matrix(self, c, linear_terms, kterms):
@@ -162,7 +163,59 @@ class EvaluationPlan:
         self.E = T.build((row, self.N)) if row else None
         self.e0 = np.concatenate(e0) if e0 else np.zeros(0)
 
+    def _build_device_outputs(self, c, kterms):
+        """``[tau; dz] = T y + t0 + V buf`` for the affine devices (see ``device_outputs``)."""
+        n_c = c.Sc.shape[0]
+        self.n_c = n_c
+        T = _Triplets()
+        t0 = np.zeros(n_c + c.nz)
+        V = _Triplets()
+        varying = {id(g): start for g, start in self.offset_slots}
+        self.nl_rows = []                        # per nonlinear group: output rows of [tau; dz]
+        for g, (woff, _) in zip(c.groups, c._wslices):
+            k, ns = g.tpl.k, len(g.tpl.states)
+            out_rows = [g.row_index[:, i] for i in range(k)] + [n_c + g.state_index[:, s] for s in range(ns)]
+            if not g.tpl.affine:
+                self.nl_rows.append(out_rows)
+                continue
+            for q, ((oname, oi), (wname, wj)) in enumerate(g.tpl.jac_entries):
+                rows = out_rows[oi if oname == "tau" else k + oi]
+                w = self.const_weights[woff + q * g.n: woff + (q + 1) * g.n]
+                inp = input_entries(c, g, wname, wj)
+                T.add(rows[inp.owner], inp.index, w[inp.owner] * inp.coef)
+                if wname == "e":
+                    np.add.at(t0, rows, w * c.e0c[g.row_index[:, wj]])
+            if id(g) in varying:
+                start = varying[id(g)]
+                for o, rows in enumerate(out_rows):
+                    V.add(rows, start + o * g.n + np.arange(g.n), 1.0)
+            else:
+                for o, (rows, val) in enumerate(zip(out_rows, g.offsets(0.0))):
+                    np.add.at(t0, rows, val)
+        self.T = T.build((n_c + c.nz, self.N))
+        self.t0 = t0
+        self.V = V.build((n_c + c.nz, self.width)) if self.offset_slots else None
+        self.ybuf = np.zeros(self.N)
+
     # --------------------------------------------------------------- evaluate
+    def device_outputs(self, x, v, z, t: float, left: bool, sx, sv, sz) -> np.ndarray:
+        """``[tau; dz]`` of every device row and state at (x, v, z, t); ``sx, sv, sz`` place them in y."""
+        yb = self.ybuf
+        yb[sx] = x
+        yb[sv] = v
+        yb[sz] = z
+        out = self.T @ yb
+        out += self.t0
+        if self.V is not None:
+            for g, start in self.offset_slots:
+                g.offsets_into(self.buf, start, t, left)
+            out += self.V @ self.buf
+        if self.nonlinear:
+            for g_rows, (g, _, _), args in zip(self.nl_rows, self.nl_args, self.kernel_arguments(yb)):
+                for rows, val in zip(g_rows, g.call(g.tpl.res_fn, args, t, left)):
+                    out[rows] = val
+        return out
+
     def kernel_arguments(self, y):
         """Per nonlinear group, the list of argument arrays (views into one vector)."""
         args = self.E @ y

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import sympy
+from sympy.printing.numpy import NumPyPrinter
+from sympy.printing.precedence import PRECEDENCE
 
 from ..component import Device, numeric_params, signal_params
 from ..errors import ModelError
@@ -80,8 +82,26 @@ class Template:
     offset_uses_time: bool = False  # ... on time itself (not only through inputs)
 
 
+class _KernelPrinter(NumPyPrinter):
+    """numpy code with small integer powers of symbols written as products.
+
+    ``x**3`` on a float array goes through the general ``pow`` (about 50 ns
+    per element with numpy 2); ``x*x*x`` costs about 1 ns. After common
+    subexpression elimination most bases are symbols; other bases keep
+    ``**`` so that they are not evaluated several times.
+    """
+
+    def _print_Pow(self, expr, rational=False):
+        base, exp = expr.base, expr.exp
+        if base.is_Atom and exp.is_Integer and 2 <= abs(int(exp)) <= 8:
+            b = self.parenthesize(base, PRECEDENCE["Mul"], strict=False)
+            product = "*".join([b] * abs(int(exp)))
+            return f"({product})" if exp > 0 else f"(1/({product}))"
+        return super()._print_Pow(expr, rational=rational)
+
+
 def _lambdify(args, exprs):
-    return sympy.lambdify(args, exprs, modules="numpy", cse=True)
+    return sympy.lambdify(args, exprs, modules="numpy", printer=_KernelPrinter, cse=True)
 
 
 def template_for(dev: Device) -> Template:

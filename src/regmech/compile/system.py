@@ -197,26 +197,22 @@ class CompiledSystem:
         return x, v, a, y[self._slam].copy(), y[self._sz].copy()
 
     def kernel_outputs(self, x, v, z, t):
-        """tau (compliant rows), dz, jacobian weights, per-group raw outputs."""
+        """e, de (compliant rows), tau, dz and the kernel Jacobian weights at (x, v, z, t).
+
+        Affine devices come from constant matrices (``EvaluationPlan.device_outputs``),
+        nonlinear classes from their kernels; weights of affine classes are constants.
+        """
         e = self.Sc @ x + self.e0c
         de = self.Sc @ v
-        tau = np.zeros(len(e))
-        dz = np.zeros(self.nz)
-        weights = self._plan.const_weights.copy()      # affine classes: constant, already in place
         left = t >= self._t_right
-        for g, (woff, njac) in zip(self.groups, self._wslices):
-            k, ns = g.tpl.k, len(g.tpl.states)
-            ri, si = g.row_index, g.state_index
-            variables = [e[ri[:, r]] for r in range(k)] + [de[ri[:, r]] for r in range(k)] + \
-                        [z[si[:, s]] for s in range(ns)]
-            out = g.call(g.tpl.res_fn, variables, t, left)
-            for r in range(k):
-                tau[ri[:, r]] = out[r]
-            for s in range(ns):
-                dz[si[:, s]] = out[k + s]
-            if njac and not g.tpl.affine:
-                for q, val in enumerate(g.call(g.tpl.jac_fn, variables, t, left)):
-                    weights[woff + q * g.n: woff + (q + 1) * g.n] = val
+        plan = self._plan
+        out = plan.device_outputs(x, v, z, t, left, self._sx, self._sv, self._sz)
+        tau, dz = out[:plan.n_c], out[plan.n_c:]
+        weights = plan.const_weights.copy()
+        if plan.nonlinear:
+            w = np.empty(len(weights) - int(plan.weight_is_const.sum()))
+            plan.nonlinear_weights_into(w, t, plan.ybuf, left)      # ybuf holds (x, v, z) now
+            weights[~plan.weight_is_const] = w
         return e, de, tau, dz, weights
 
     def residual(self, t, y, yp, res, modes=None):
