@@ -369,3 +369,16 @@ def test_kernel_printer_writes_integer_powers_as_products():
         np.testing.assert_allclose(u, v, rtol=1e-14)
     src = inspect.getsource(fast)
     assert "x**3" not in src and "(x*x*x)" in src
+
+
+def test_banded_ordering_narrows_a_chain_with_gears_and_shafts():
+    from regmech.compile.assembly import banded_ordering
+    c = gear_chain().compile()
+    perm, lb, ub = banded_ordering(c.jac.pattern)
+    assert sorted(perm.tolist()) == list(range(c.N))
+    P = c.jac.pattern.toarray() != 0
+    Q = P[np.ix_(perm, perm)]
+    rows, cols = np.nonzero(Q)
+    assert (rows - cols).max() == lb and (cols - rows).max() == ub
+    r0, c0 = np.nonzero(P)
+    assert lb + ub < (r0 - c0).max() + (c0 - r0).max()     # narrower than the natural layout
