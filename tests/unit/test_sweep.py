@@ -239,6 +239,19 @@ def test_runs_lost_with_a_dead_worker_are_recorded_and_rerun_on_resume(tmp_path)
     assert BUILT == []                   # "0012" matched as text, 10.0 as a number
 
 
+def test_a_line_cut_short_by_a_crash_is_computed_again(tmp_path):
+    out = tmp_path / "study.csv"
+    study = grid({"fn_max": [10.0, 20.0, 40.0]})
+    rm.sweep(coupled_clutches, study, OUTPUTS, executor="serial", out=out, **FAST)
+    text = out.read_text()
+    out.write_text(text[: text.rindex("\n", 0, len(text) - 2) + 12])      # the last row torn mid-line
+    BUILT.clear()
+    table = rm.sweep(_counting_clutches, study, OUTPUTS, executor="serial", out=out, **FAST)
+    assert BUILT == study[2:] and list(table["status"]) == ["ok"] * 3
+    with open(out) as fh:
+        assert [r["status"] for r in csv.DictReader(fh)] == ["ok"] * 3
+
+
 def test_parquet_output_resumes(tmp_path):
     pytest.importorskip("pyarrow")
     out = tmp_path / "study.parquet"

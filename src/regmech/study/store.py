@@ -64,9 +64,14 @@ class ResultStore:
         self.columns = columns
         stored = {}
         for rec in records:
+            run_id = _parse(rec.get("run_id"))
+            if not isinstance(run_id, int) or rec.get("status") not in FINISHED:
+                continue             # a line cut short by a crash: that run is computed again
             # kept as stored (CSV: text) for matching parameters; parse_row() gives the values
-            stored[int(_parse(rec["run_id"]))] = rec
-            self.rows[int(_parse(rec["run_id"]))] = parse_row(rec)
+            stored[run_id] = rec
+            self.rows[run_id] = parse_row(rec)
+        if not self.parquet:
+            self.rewrite(sort=True)  # a clean file (no half line from a crash) before appending
         return stored
 
     # -- writing ---------------------------------------------------------------------------------

@@ -40,17 +40,16 @@ class StudySpec:
 
     def dumps(self) -> bytes:
         try:
-            import cloudpickle
-            return cloudpickle.dumps(self)
+            import cloudpickle as pickler      # pickles lambdas and closures by value
         except ImportError:
-            pass
+            pickler = pickle
         try:
-            return pickle.dumps(self)
-        except (pickle.PicklingError, AttributeError, TypeError) as exc:
+            return pickler.dumps(self)
+        except Exception as exc:
             raise ParameterError(
                 f"sweep: the build or outputs function cannot be sent to worker processes ({exc}); define them "
-                f"at module level (not lambdas or nested functions), install cloudpickle, or use "
-                f"executor='serial'") from exc
+                f"at module level (not lambdas or nested functions, unless cloudpickle is installed), make "
+                f"what they use picklable, or use executor='serial'") from exc
 
 
 def run_one(spec: StudySpec, run_id: int, params: dict) -> dict:
