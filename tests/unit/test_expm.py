@@ -456,7 +456,26 @@ def test_forced_taylor_order_and_sparse_path_agree_with_default():
     J, c = _undamped_case(12, rng)
     m = chain_model(J, c, d=np.full(12, 0.3), drive=Poly(1.0, 2.0))
     base = m.simulate(1.0, dt_out=0.05, solver="expm")
-    for opts in ({"taylor_r": 3}, {"sparse": True}, {"sparse": True, "taylor_r": 12}):
+    for opts in ({"taylor_r": 3}, {"sparse": True}, {"sparse": True, "taylor_r": 12}, {"scaling": "frequency"}):
         other = m.simulate(1.0, dt_out=0.05, solver="expm", **opts)
         names = [f"J{i}.w" for i in range(12)]
         assert rel_error(other, names, np.column_stack([base[nm] for nm in names])) <= 1e-12, opts
+
+
+# ============================================================ the paper's tables
+def test_optimal_split_table_reproduces_the_paper():
+    from regmech.analysis.expm_tables import PAPER_TABLE, optimal_split_table
+    for row in optimal_split_table():
+        assert row["theta"] == pytest.approx(row["theta_closed_form"], rel=1e-10)
+        paper_theta, paper_eps = PAPER_TABLE[row["r"]]
+        assert row["theta"] == pytest.approx(paper_theta, abs=0.006)          # the paper rounds to 2 digits
+        assert 0.5 * paper_eps <= row["eps"] <= 1.5 * paper_eps               # ... and eps to 1 digit
+
+
+def test_roundoff_check_on_a_stretched_spectrum():
+    from regmech.analysis.expm_tables import roundoff_check
+    rows = roundoff_check(1e3, periods=(0.1, 10.0), n_steps=2)
+    assert [r["ratio"] for r in rows] == pytest.approx([1e3, 1e3], rel=1e-6)
+    for r in rows:
+        # measured: ~1e-11; the floor of a ratio-1e3 spectrum is ~(w_max/w_min)^2 * 1e-16 = 1e-10
+        assert r["err_phi"] <= 1e-9 and r["err_w"] <= 1e-9, r

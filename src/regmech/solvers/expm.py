@@ -16,7 +16,7 @@ the forces of sliding friction devices.
 Scaled first-order form (SOURCES.md 002 and its measured notes): with the
 Cholesky factor ``M = L L^T`` (``L = M^1/2`` for a diagonal M) and
 ``w = sqrt(||C^||_inf)`` [1/s], an upper bound of the highest natural
-frequency,
+frequency, the paper's form ("frequency" scaling) is
 
     q = [L^T y', w L^T y],     q' = A q + b(t),
     A = [[-F^, -C^/w], [w I, 0]],   F^ = L^-1 B L^-T,   C^ = L^-1 C L^-T,
@@ -24,7 +24,14 @@ frequency,
 
 Scaling the position half by w keeps ``||A||`` near the highest frequency
 (instead of its square), which saves about six doublings and their
-round-off. On each step of length h the signals are replaced by the
+round-off. It still leaves a mode of frequency w_k with entries w/w_k in
+D0, whose round-off the doublings amplify; the dense path therefore scales
+the position half by ``S = C^^1/2`` instead ("energy" scaling,
+``q2 = S L^T y``, an eigendecomposition of C^ once per mode set): the
+undamped part of A becomes skew-symmetric and D0 nearly orthogonal (2 to
+10 times smaller round-off on stretched spectra, see
+``analysis.expm_tables.roundoff_check``). The sparse path keeps w. On each
+step of length h the signals are replaced by the
 polynomial of degree p - 1 (``order_p`` = p = 1, 2, 3) through their values
 at the Gauss-Legendre points of the step (p = 1: the midpoint), and the step
 is exact for that forcing::
@@ -53,8 +60,17 @@ breakpoints of the signals and ``t_end`` are hit exactly, cutting an
 interval into equal steps), ``order_p`` (1..3, default 2), ``taylor_r``
 (default: the cheapest order for ``tol``), ``tol`` (target of the
 truncation error model, default the unit round-off), ``sparse`` (None:
-automatic), ``drop_tol`` (sparse path), ``max_events``, ``chatter_window``,
-``chatter_count``.
+automatic), ``drop_tol`` (sparse path), ``scaling`` ("energy" or
+"frequency"; default energy on the dense path), ``max_events``,
+``chatter_window``, ``chatter_count``.
+
+Round-off floor (measured): the D's are accurate to about ``nu h * 1e-16``
+(the data of A are rounded, so exp(A h) is defined only to that level), but
+the slow part of the response of a stretched spectrum is ill-conditioned:
+the error grows like ``(w_max / w_min)^2 * 1e-16`` (5e-11 at a ratio of
+1e3, 1e-6 at 1e5; scipy.linalg.expm of the augmented matrix does the same),
+i.e. 1e-12 for a 100-car train and 1e-11..1e-10 for 1000 cars
+(benchmarks/results/expm.md).
 """
 
 from __future__ import annotations
@@ -125,12 +141,31 @@ def nonlinear_components(c, t_start: float, t_end: float, samples: int = 48) -> 
         bad += [f"{type(d).__name__} '{d.name}'" for d, ch in zip(g.devices, changed) if ch]
     if c.mf:
         speeds = (0.0, 1e-6, 1e-3, 0.1, 1.0, 10.0, 1e3, 1e6)
-        for dev in c.friction.devices:
-            caps = [dev.kinetic(w, t_start) for w in speeds]
-            if any(abs(d) > 0 for _, d in caps) or any(abs(v - caps[0][0]) > 1e-12 * (1 + abs(caps[0][0]))
-                                                       for v, _ in caps):
+        for j, dev in enumerate(c.friction.devices):
+            if getattr(dev, "coupled", False):
+                # a row tied to another constraint force (lossy gear): linear per quadrant, but not a
+                # force input of the structural-matrix form
+                bad.append(f"{type(dev).__name__} '{dev.name}'")
+                continue
+            laws = [sliding_law(c.friction, j, 1, w, t_start, False) for w in speeds]
+            if any(abs(d) > 0 or abs(r - laws[0][0]) > 1e-12 * (1 + abs(laws[0][0])) for r, d in laws):
                 bad.append(f"{type(dev).__name__} '{dev.name}'")
     return bad
+
+
+def sliding_law(friction, j, mode, w_abs, t, left):
+    """(force, d force / d|w_rel|) of friction row j sliding in ``mode`` (+-1) at speed ``w_abs``.
+
+    Uses the device's ``relation`` (``c_own lam + c_cpl lam_cpl = rhs``, with ``c_cpl = 0`` for the
+    devices expm accepts) when the friction set has one, else ``mode * kinetic``.
+    """
+    dev = friction.devices[j]
+    if hasattr(dev, "relation"):
+        quadrant = int(getattr(friction, "quadrant", np.ones(friction.mf, int))[j])
+        c_own, _, rhs, drhs = dev.relation(int(mode), quadrant, w_abs, t, left)
+        return rhs / c_own, drhs / c_own
+    tk, dk = dev.kinetic(w_abs, t, left)
+    return mode * tk, mode * dk
 
 
 def check_linear(c, t_start: float, t_end: float) -> None:
@@ -211,7 +246,6 @@ class Forcing:
             names += [f"{lvl} {nm}" for lvl in ("dg", "g'", "g''") for nm in lin.kinematic_names]
         # sliding friction
         self.sliding = np.zeros(0, int)
-        self.friction_devices = c.friction.devices if c.mf else []
         if c.mf:
             self.sliding = np.nonzero(np.isin(np.asarray(modes), (-1, 1)))[0]
             if len(self.sliding):
@@ -248,7 +282,7 @@ class Forcing:
         if len(self.sliding):
             # constant coefficients: the kinetic force mode * tau_k does not depend on the sliding speed
             left = t >= c._t_right
-            parts.append(np.array([self.modes[j] * self.friction_devices[j].kinetic(0.0, t, left)[0]
+            parts.append(np.array([sliding_law(c.friction, j, self.modes[j], 0.0, t, left)[0]
                                    for j in self.sliding]))
         return np.concatenate(parts)
 
@@ -356,13 +390,22 @@ class ModeSystem:
         # scale works (A is then nilpotent or first order), the damping rate or 1/s
         self.w = math.sqrt(c_norm) if c_norm > 0 else (f_norm if f_norm > 0 else 1.0)
         w = self.w
+        scaling = options.get("scaling") or ("frequency" if self.sparse else "energy")
+        if scaling == "energy" and self.sparse:
+            raise ParameterError("solver 'expm': scaling='energy' needs the dense path (sparse=False)")
+        self.scaling = scaling
+        self._S = None
         if self.sparse:
             self.A = sp.bmat([[-Fh, -Ch / w], [w * sp.identity(nq), None]], format="csr")
             self.Win = np.vstack([np.asarray(Win_top.toarray()), np.zeros((nq, Win_top.shape[1]))])
+            self.nu = float(abs(self.A).sum(axis=1).max()) if nq else 0.0
+        elif scaling == "energy":
+            self.A, self.nu = self._energy_form(Fh, Ch, f_norm)
+            self.Win = np.vstack([Win_top, np.zeros((nq, Win_top.shape[1]))])
         else:
             self.A = np.block([[-Fh, -Ch / w], [w * np.eye(nq), np.zeros((nq, nq))]])
             self.Win = np.vstack([Win_top, np.zeros((nq, Win_top.shape[1]))])
-        self.nu = float(abs(self.A).sum(axis=1).max()) if nq else 0.0
+            self.nu = float(abs(self.A).sum(axis=1).max()) if nq else 0.0
         self.p = options["order_p"]
         self.Vinv = fit_matrix(self.p)
         self.nodes = fit_nodes(self.p)
@@ -372,6 +415,41 @@ class ModeSystem:
         self.last_stats: dict = {}
 
     # ------------------------------------------------------------- scaling
+    def _energy_form(self, Fh, Ch, f_norm):
+        """A for the position half scaled by ``S = (C^ + sigma^2 I)^1/2`` instead of ``w``.
+
+        With ``C^ = V diag(lam) V^T``, ``s = sqrt(lam + sigma^2)``: ``q2 = S L^T y``,
+        ``A = [[-F^, -V diag(lam/s) V^T], [S, 0]]``. Each undamped mode then has the block
+        ``[[0, -lam/s], [s, 0]]``, skew-symmetric up to sigma, so D0 is (nearly) orthogonal
+        and the round-off of the doublings is not amplified. With the single scale w = w_max a
+        mode of frequency w_k has entries w_max/w_k in D0, and the doublings amplify their
+        round-off by that factor: the floor grows like (w_max/w_min) * nu h * 1e-16
+        (measured in benchmarks/results/expm.md). ``sigma`` only matters for rigid-body modes
+        (lam = 0): the smallest non-zero lam (or the damping rate, or 1/s).
+        """
+        lam, V = la.eigh(Ch)
+        lam = np.maximum(lam, 0.0)
+        lmax = lam.max(initial=0.0)
+        rigid = lam <= 1e-12 * lmax
+        if rigid.any():
+            sigma2 = lam[~rigid].min() if (~rigid).any() else max(f_norm, 1.0) ** 2
+        else:
+            sigma2 = 0.0
+        sv = np.sqrt(lam + sigma2)
+        S = (V * sv) @ V.T
+        self._S = (S, (V / sv) @ V.T)
+        nq = len(lam)
+        A = np.block([[-Fh, -(V * (lam / sv)) @ V.T], [S, np.zeros((nq, nq))]])
+        # ||A||_2 <= ||F^||_2 + max(||S||_2, ||V lam/s V^T||_2) and ||F^||_2 <= ||F^||_inf (symmetric)
+        nu = f_norm + float(sv.max(initial=0.0))
+        return A, nu
+
+    def _position_scale(self, y_l):
+        return self.w * y_l if self._S is None else self._S[0] @ y_l
+
+    def _position_unscale(self, q2):
+        return q2 / self.w if self._S is None else self._S[1] @ q2
+
     def _l_inv(self, X):
         kind, L = self._L
         if kind == "diag":
@@ -390,12 +468,12 @@ class ModeSystem:
 
     def state(self, y, yd) -> np.ndarray:
         """q = [L^T y', w L^T y]."""
-        return np.concatenate([self._lt(yd), self.w * self._lt(y)])
+        return np.concatenate([self._lt(yd), self._position_scale(self._lt(y))])
 
     def coordinates(self, q):
         """(y, y') from q."""
         nq = self.nq
-        return self._lt_inv(q[nq:]) / self.w, self._lt_inv(q[:nq])
+        return self._lt_inv(self._position_unscale(q[nq:])), self._lt_inv(q[:nq])
 
     # --------------------------------------------------------- propagators
     def propagator(self, h: float, cache: bool = True) -> "Propagator":
@@ -566,7 +644,8 @@ class ExpmEngine:
                "setup_time": sum(ms.setup_time for ms in self.systems.values())}
         if self.systems:
             ms = next(iter(self.systems.values()))
-            out.update({"sparse": ms.sparse, "w": ms.w, "nu": ms.nu, "inputs": ms.forcing.size})
+            out.update({"sparse": ms.sparse, "scaling": ms.scaling, "w": ms.w, "nu": ms.nu,
+                        "inputs": ms.forcing.size})
             out.update({k: v for k, v in ms.last_stats.items()})
         return out
 
@@ -574,7 +653,7 @@ class ExpmEngine:
 def _check_options(h, order_p, taylor_r, tol, drop_tol, unused):
     if unused:
         raise ParameterError(f"solver 'expm' takes the options h, order_p, taylor_r, tol, sparse, drop_tol, "
-                             f"max_events, chatter_window, chatter_count; got unknown {sorted(unused)}")
+                             f"scaling, max_events, chatter_window, chatter_count; got unknown {sorted(unused)}")
     if h is not None and not (isinstance(h, (int, float)) and not isinstance(h, bool) and math.isfinite(h) and h > 0):
         raise ParameterError(f"solver 'expm': the step h must be a positive number [s], got {h!r}")
     if order_p not in (1, 2, 3) or isinstance(order_p, bool):
@@ -591,10 +670,12 @@ def _check_options(h, order_p, taylor_r, tol, drop_tol, unused):
 
 @register("expm")
 def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2, taylor_r=None,
-                  tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, max_events=100000, chatter_window=None,
-                  chatter_count=50, **unused):
+                  tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, scaling=None, max_events=100000,
+                  chatter_window=None, chatter_count=50, **unused):
     """The step-doubling matrix exponential integrator for linear models (see regmech.solvers.expm)."""
     _check_options(h, order_p, taylor_r, tol, drop_tol, unused)
+    if scaling not in (None, "energy", "frequency"):
+        raise ParameterError(f"solver 'expm': scaling must be None, 'energy' or 'frequency', got {scaling!r}")
     c = model.compile()
     if isinstance(t_start, (int, float)) and isinstance(t_end, (int, float)) and t_end > t_start:
         check_linear(c, float(t_start), float(t_end))
@@ -602,7 +683,7 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
     if step is None:
         step = dt_out if dt_out is not None else ((t_end - t_start) / 500.0 if t_end > t_start else 1.0)
     options = {"order_p": order_p, "taylor_r": taylor_r, "tol": float(tol), "sparse": sparse,
-               "drop_tol": float(drop_tol), "t_end": float(t_end)}
+               "drop_tol": float(drop_tol), "t_end": float(t_end), "scaling": scaling}
     engine = ExpmEngine(c, float(step), options)
 
     def make(problem, t0, u0, t_bound, knots):
