@@ -85,3 +85,43 @@ def one_way_clutch(engaged: bool = True) -> rm.Model:
         load = m.add(Torque("torqueLoad", tau=-0.3))
         m.connect(j_out.flange_b, load.flange)
     return m
+
+
+def lossy_gear_demo(number: int = 1) -> rm.Model:
+    """MSL ``Rotational.Examples.LossyGearDemo1/2/3`` (simulate 0.5, 0.5 and 1 s).
+
+    1: Inertia1 (J 1) driven by ``10 sin(2 pi t)`` -> LossyGear (ratio 2, efficiency 0.5 both ways)
+       -> Inertia2 (J 1.5, at rest) loaded by a ramp from -10 to -5 N m over 2 s: the gear rolls
+       forward, backward and sticks.
+    2: as 1 with a BearingFriction (tau table [(0, 0.5), (1, 1)]) between the torque and Inertia1.
+    3: ratio 1, loss table [0, 0.25, 0.25, 0.625, 2.5]; both inertias (J 0.001) start at 10 rad/s,
+       a load step of 1 N m at 0.5 s on Inertia2: a case where the driving side is not obvious.
+    """
+    from regmech.components import BearingFriction, LossyGear
+    from regmech.signals import Ramp
+    if number not in (1, 2, 3):
+        raise rm.ParameterError(f"lossy_gear_demo: number must be 1, 2 or 3, got {number!r}")
+    m = rm.Model(f"LossyGearDemo{number}")
+    if number in (1, 2):
+        gear = m.add(LossyGear("gear", ratio=2.0, loss_table=[[0.0, 0.5, 0.5, 0.0, 0.0]]))
+        j1 = m.add(Inertia("Inertia1", J=1.0))
+        j2 = m.add(Inertia("Inertia2", J=1.5, phi0=0.0, w0=0.0))
+        t1 = m.add(Torque("torque1", tau=Sine(amplitude=10.0, freq_hz=1.0)))
+        t2 = m.add(Torque("torque2", tau=Ramp(height=5.0, duration=2.0, offset=-10.0)))
+        if number == 2:
+            bf = m.add(BearingFriction("bearingFriction", tau_table=[(0.0, 0.5), (1.0, 1.0)]))
+            m.connect(t1.flange, bf.flange)
+            m.connect(bf.flange, j1.flange_a)
+        else:
+            m.connect(t1.flange, j1.flange_a)
+    else:
+        gear = m.add(LossyGear("gear", ratio=1.0, loss_table=[[0.0, 0.25, 0.25, 0.625, 2.5]]))
+        j1 = m.add(Inertia("Inertia1", J=0.001, w0=10.0))
+        j2 = m.add(Inertia("Inertia2", J=0.001, phi0=0.0, w0=10.0))
+        t1 = m.add(Torque("torque1", tau=0.0))
+        t2 = m.add(Torque("torque2", tau=Step(height=1.0, start_time=0.5)))
+        m.connect(t1.flange, j1.flange_a)
+    m.connect(j1.flange_b, gear.flange_a)
+    m.connect(gear.flange_b, j2.flange_a)
+    m.connect(j2.flange_b, t2.flange)
+    return m

@@ -257,6 +257,10 @@ class Device(Component):
         """Structure rows: coefficient of each flange's position in each device coordinate."""
         return [{"flange_a": -1.0, "flange_b": 1.0}]
 
+    def row_kinds(self) -> list[str]:
+        """Kind of each row (a lossy gear has a rigid row and a friction row); default: all the device's kind."""
+        return [self.device_kind()] * len(self.rows())
+
     # -- compliant devices: symbolic laws ----------------------------------
     def law(self, rel, rel_dot):
         """Transmitted torque/force of a one-row compliant device (sympy-compatible)."""

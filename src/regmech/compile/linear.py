@@ -292,8 +292,7 @@ def linearize(compiled, t: float = 0.0, modes=None, at=None, sparse: bool | None
     d_fric = np.zeros(c.mf)
     if c.mf:
         sliding = np.isin(modes, (-1, 1))
-        slide_w = c.friction.weights(float(t), v0, 0.0, modes)[0::4]
-        d_fric = np.where(sliding, -slide_w, 0.0)
+        d_fric = np.where(sliding, c.friction.slopes(float(t), v0, modes), 0.0)
         if not np.all(np.isfinite(d_fric)):
             bad = [st.friction[j].device.name for j in np.nonzero(~np.isfinite(d_fric))[0]]
             raise StructureError(f"linearize: the friction characteristic slope of {bad} is not finite at the "

@@ -220,7 +220,7 @@ class CompiledSystem:
         self._plan.residual(t, y, yp, t >= self._t_right, res)
         if self.mf:
             x, v, a, lam, z = self.unpack(y, yp)
-            res[self.r_fric] = self.friction.residual_rows(t, v, a, lam[self.mp + self.mv:], modes)
+            res[self.r_fric] = self.friction.residual_rows(t, v, a, lam, modes)
 
     def jacobian_data(self, t, y, yp, cj, modes=None):
         """CSC values of ``dF/dy + cj dF/dy'`` on ``self.jac.pattern``."""
@@ -228,58 +228,72 @@ class CompiledSystem:
         if plan is None or plan.jac is not self.jac:      # the pattern grows when friction rows are added
             plan = self._jac_plan = JacobianPlan(self.jac, self._plan, self.nw_kernel)
         extra = self.friction.weights(t, y[self._sv], cj, modes) if self.mf else None
+        if extra is not None:
+            extra = extra[: plan.n_extra]        # trailing weights without pattern entries (no coupled rows)
         return plan.data(t, y, cj, t >= self._t_right, extra)
 
     # ----------------------------------------------------- consistent values
-    def _kkt(self, modes):
-        key = tuple(int(m) for m in modes) if self.mf else ()
-        lu = self._kkt_cache.get(key)
-        if lu is None:
-            rows = [self.Gp, self.Gv]
-            if self.mf:
-                rows.append(self.Gf[np.asarray(modes) == 0])
-            G = sp.vstack(rows).tocsc()
-            k = G.shape[0]
-            K = sp.bmat([[sp.diags(self.mass), G.T], [G, None]], format="csc") if k else sp.diags(self.mass).tocsc()
-            try:
-                lu = spla.splu(K)
-                d = np.abs(lu.U.diagonal())
-                if d.size and d.min() <= 1e-13 * d.max():
-                    raise RuntimeError("singular")
-            except RuntimeError:
+    def _kkt(self, modes, relations):
+        """Sparse LU of the acceleration-level system for a mode set, cached.
+
+        Unknowns (a, lam); rows: motion ``M a + G^T lam = f``; position/speed rows at
+        acceleration level ``G_pv a = g``; friction row j: ``G_f[j] a = 0`` when stuck,
+        else ``c_own lam_j + c_cpl lam_cpl = rhs`` (``relations``: per row (c_own, c_cpl)).
+        """
+        key = (tuple(int(m) for m in modes), tuple(relations)) if self.mf else ()
+        hit = self._kkt_cache.get(key)
+        if hit is not None:
+            return hit
+        m = self.m
+        blocks = [[sp.diags(self.mass), self.GallT], [self.Gpv, sp.csr_matrix((self.mp + self.mv, m))]]
+        if self.mf:
+            fr = self.friction
+            stuck = np.asarray(modes) == 0
+            ra = sp.diags(stuck.astype(float)) @ self.Gf
+            rows, cols, vals = [], [], []
+            for j, (c_own, c_cpl) in enumerate(relations):
+                if stuck[j]:
+                    continue
+                rows.append(j)
+                cols.append(self.mp + self.mv + j)
+                vals.append(c_own)
+                if fr.coupled[j] >= 0 and c_cpl != 0.0:
+                    rows.append(j)
+                    cols.append(fr.coupled[j])
+                    vals.append(c_cpl)
+            rl = sp.csr_matrix((vals, (rows, cols)), shape=(self.mf, m))
+            blocks.append([ra, rl])
+        K = sp.bmat(blocks, format="csc")
+        try:
+            lu = spla.splu(K)
+            d = np.abs(lu.U.diagonal())
+            if d.size and d.min() <= 1e-13 * d.max():
                 lu = None
-            if lu is None:
-                msg = self.friction.singular_message(modes) if self.mf else \
-                    "the mass matrix restricted to the constraints is singular"
-                raise StructureError(msg)
-            self._kkt_cache[key] = (lu, G.shape[0])
-            lu = self._kkt_cache[key]
+        except RuntimeError:
+            lu = None
+        if lu is None:
+            msg = self.friction.singular_message(modes) if self.mf else \
+                "the mass matrix restricted to the constraints is singular"
+            raise StructureError(msg)
+        if len(self._kkt_cache) > 256:      # speed-dependent loss tables give many keys
+            self._kkt_cache.clear()
+        self._kkt_cache[key] = lu
         return lu
 
     def accelerations(self, t, x, v, z, modes):
-        """Solve the motion + acceleration-level equations for (a, lam, dz)."""
+        """Solve the motion and acceleration-level equations for (a, lam, dz)."""
         e, de, tau, dz, _ = self.kernel_outputs(x, v, z, t)
         gp, gv = self._refs(t)
-        lam_f_known = np.zeros(self.mf)
-        stuck = np.zeros(self.mf, bool)
+        parts = [-(self.ScT @ tau), gp[2], gv[1]]
+        relations = ()
         if self.mf:
-            stuck = np.asarray(modes) == 0
-            lam_f_known = self.friction.known_forces(t, v, modes)
-        rhs_m = -(self.ScT @ tau)
-        if self.mf:
-            rhs_m -= self.Gf.T @ np.where(stuck, 0.0, lam_f_known)
-        rhs = np.concatenate([rhs_m, gp[2], gv[1], np.zeros(int(stuck.sum()))])
-        (lu, k) = self._kkt(modes)
-        sol = lu.solve(rhs) if k or self.n else rhs
-        a = sol[: self.n]
-        mult = sol[self.n:]
-        lam = np.zeros(self.m)
-        lam[: self.mp + self.mv] = mult[: self.mp + self.mv]
-        if self.mf:
-            lf = lam_f_known.copy()
-            lf[stuck] = mult[self.mp + self.mv:]
-            lam[self.mp + self.mv:] = lf
-        return a, lam, dz
+            relations, rhs_f = self.friction.relations(t, v, modes)
+            parts.append(rhs_f)
+        rhs = np.concatenate(parts)
+        if not len(rhs):
+            return np.zeros(0), np.zeros(0), dz
+        sol = self._kkt(modes, relations).solve(rhs)
+        return sol[: self.n], sol[self.n:], dz
 
     def project(self, t, x_guess, v_guess, fixed_x=None, fixed_v=None, modes=None):
         """Closest consistent (x, v) to the guesses: position and velocity
@@ -335,21 +349,22 @@ class CompiledSystem:
         z = self.state_start.copy()
         return self.assemble_y(t0, x, v, z, modes)
 
-    def assemble_y(self, t, x, v, z, modes):
+    def assemble_y(self, t, x, v, z, modes, rates=True):
         """Consistent (y, y') from positions, velocities and device states.
 
         The derivatives of the algebraic unknowns (dummy accelerations and
         constraint forces) are not needed by the residual but feed IDA's
         first predictor: left at zero, a force that starts growing linearly
         fails the error test at any step size, so they are taken from a
-        forward difference along the motion.
+        forward difference along the motion (``rates=False`` skips that: only IDA's
+        predictor uses them).
         """
         a, lam, dz = self.accelerations(t, x, v, z, modes)
         y = np.zeros(self.N)
         yp = np.zeros(self.N)
         y[self.ix], y[self.iv], y[self.iad], y[self.ilam], y[self.iz] = x, v, a[self.Dv], lam, z
         yp[self.ix], yp[self.iv], yp[self.iz] = v, a, dz
-        if len(self.iad) or self.m:
+        if rates and (len(self.iad) or self.m):
             d = 1e-7 * max(1.0, abs(t))
             if t + d < self._t_right:
                 a2, lam2, _ = self.accelerations(t + d, x + d * v, v + d * a, z + d * dz, modes)
@@ -377,14 +392,21 @@ class CompiledSystem:
         x[self.Kx] = u[:nkx]
         v[self.Kv] = u[nkx:nkx + nkv]
         z = u[nkx + nkv:]
-        if self.mp:
-            gp, gv = self._refs(t)
-            x[self.Dx] = self._dummy_solve("x", gp[0] - self.e0p - self.Gp[:, self.Kx] @ x[self.Kx])
         if len(self.Dv):
             gp, gv = self._refs(t)
-            rhs = np.concatenate([gp[1], gv[0]]) - self.Gpv[:, self.Kv] @ v[self.Kv]
+            GpK, GpvK = self._independent_blocks()
+            if self.mp:
+                x[self.Dx] = self._dummy_solve("x", gp[0] - self.e0p - GpK @ x[self.Kx])
+            rhs = np.concatenate([gp[1], gv[0]]) - GpvK @ v[self.Kv]
             v[self.Dv] = self._dummy_solve("v", rhs)
         return x, v, z
+
+    def _independent_blocks(self):
+        """G_p[:, K_x] and G_pv[:, K_v], sliced once (slicing sparse matrices per call is slow)."""
+        blocks = self.__dict__.get("_ind_blocks")
+        if blocks is None:
+            blocks = self._ind_blocks = (self.Gp[:, self.Kx].tocsr(), self.Gpv[:, self.Kv].tocsr())
+        return blocks
 
     def _dummy_solve(self, level, rhs):
         cache = self.__dict__.setdefault("_dummy_lu", {})

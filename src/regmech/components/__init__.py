@@ -2,7 +2,7 @@
 
 from .backlash import Backlash, ElastoBacklash
 from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
-from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, OneWayClutch
+from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, LossyGear, OneWayClutch
 from .gears import IdealGear
 from .gearing import Differential, Planetary
 from .inertial import Fixed, Inertia, Mass
@@ -16,7 +16,7 @@ __all__ = [
     "IdealGear", "Differential", "Planetary",
     "Backlash", "ElastoBacklash",
     "Engine", "RoadLoad",
-    "Clutch", "OneWayClutch", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
+    "Clutch", "OneWayClutch", "LossyGear", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
     "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
 ]

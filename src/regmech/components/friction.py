@@ -51,6 +51,15 @@ class FrictionDevice(Device):
 
     kind = "friction"
     one_way = False   # True: only w_rel >= 0 (freewheel); no Backward mode
+    coupled = False   # True: the row's force is tied to the device's own rigid row (LossyGear)
+
+    def relation(self, mode, quadrant, w_abs, t, left=False):
+        """Equation of a non-stuck row: ``c_own lam + c_cpl lam_cpl = rhs``; returns
+        (c_own, c_cpl, rhs, d rhs / d|w_rel|)."""
+        if mode == FREE:
+            return 1.0, 0.0, 0.0, 0.0
+        tk, dk = self.kinetic(w_abs, t, left)
+        return 1.0, 0.0, mode * tk, mode * dk
 
     def kinetic(self, w_abs: float, t: float, left: bool = False) -> tuple[float, float]:
         """Kinetic capacity at relative speed ``w_abs`` >= 0 and its derivative d/dw."""
@@ -191,6 +200,125 @@ class BearingFriction(FrictionDevice):
         return float(ts[k] + slope * (w_abs - ws[k])), float(slope)
 
 
+class LossyGear(FrictionDevice):
+    """Gear with mesh efficiency and bearing friction, stuck or rolling (MSL LossyGear).
+
+    Kinematics ``phi_a - phi_s = ratio (phi_b - phi_s)`` (a rigid row, mesh force
+    ``lam_g``) and a friction row on ``w_a = w_flange_a - w_support`` whose force is
+    the loss torque ``tau_loss`` acting at flange_a: ``flange_a.tau = lam_g + tau_loss =
+    tau_a``, ``flange_b.tau = -ratio (tau_a - tau_loss)``.
+
+    ``loss_table`` rows ``(|w_a|, eta_mf1, eta_mf2, |tau_bf1|, |tau_bf2|)``: mesh
+    efficiency when flange_a drives (1) or flange_b drives (2), and the resultant
+    bearing friction with respect to flange_a. Rolling forward (``w_a > 0``):
+    ``tau_loss = (1 - eta_mf1) tau_a + tau_bf1`` when ``tau_eta = tau_a - tau_bf_a >= 0``
+    (flange_a drives) else ``(1 - 1/eta_mf2) tau_a + tau_bf2``; backward mirrored.
+    Since ``tau_a`` contains ``tau_loss`` the row is linear in both multipliers. Stuck
+    (``w_a = 0``): the loss torque holds the gear while it lies between the values at
+    ``w = 0+`` and ``0-``; beyond them it starts rolling. The driving side changes at
+    an event where ``tau_eta`` crosses zero. An ideal table ``[[0, 1, 1, 0, 0]]``
+    keeps the gear in mode Free (``tau_loss = 0``).
+    """
+
+    coupled = True
+    ratio = Param(check="nonzero", doc="transmission ratio phi_a/phi_b")
+    loss_table = Param([[0.0, 1.0, 1.0, 0.0, 0.0]], check="any", doc="(|w_a|, eta_mf1, eta_mf2, tau_bf1, tau_bf2) rows")
+    flanges = (("flange_a", ROTATIONAL), ("flange_b", ROTATIONAL), ("support", ROTATIONAL, True))
+    rel_names = {ROTATIONAL: (None, None, None, None)}
+
+    def validate(self):
+        from ..errors import ParameterError
+        try:
+            tab = np.atleast_2d(np.asarray(self._values["loss_table"], dtype=float))
+        except (TypeError, ValueError):
+            tab = None
+        if tab is None or tab.ndim != 2 or tab.shape[1] != 5 or not np.all(np.isfinite(tab)):
+            raise ParameterError(f"LossyGear '{self.name}': loss_table must be rows (|w_a|, eta_mf1, eta_mf2, "
+                                 f"tau_bf1, tau_bf2), got {self._values['loss_table']!r}")
+        if np.any(tab[:, 1:3] <= 0) or np.any(tab[:, 1:3] > 1) or np.any(np.diff(tab[:, 0]) <= 0) or tab[0, 0] < 0:
+            raise ParameterError(f"LossyGear '{self.name}': efficiencies must lie in (0, 1] and speeds increase from >= 0")
+        self._table = tab
+        self._ideal = bool(np.allclose(tab, [[0.0, 1.0, 1.0, 0.0, 0.0]], rtol=0, atol=1e-15) and len(tab) == 1)
+        self._zero = self._interp(0.0)
+
+    def rows(self):
+        r = self.ratio
+        return [{"flange_a": 1.0, "flange_b": -r, "support": r - 1.0}, {"flange_a": 1.0, "support": -1.0}]
+
+    def row_kinds(self):
+        return ["rigid", "friction"]
+
+    def _interp(self, w_abs):
+        tab = self._table
+        eta1, eta2, bf1, bf2 = (float(np.interp(w_abs, tab[:, 0], tab[:, k])) for k in range(1, 5))
+        bf1, bf2 = abs(bf1), abs(bf2)
+        if abs(eta1 - 1.0) < 1e-15 and abs(eta2 - 1.0) < 1e-15:
+            bf_a = bf1 / 2.0        # the split between the sides is arbitrary (MSL does the same)
+        else:
+            bf_a = (bf1 - bf2) / (eta1 - 1.0 / eta2)
+        return eta1, eta2, bf1, bf2, bf_a
+
+    @staticmethod
+    def _quadrant_loss(mode, q, coeffs):
+        """tau_loss = k * tau_a + b for rolling ``mode`` and driving side ``q``."""
+        eta1, eta2, bf1, bf2, _ = coeffs
+        if mode == FORWARD:
+            return (1.0 - eta1, bf1) if q > 0 else (1.0 - 1.0 / eta2, bf2)
+        return (1.0 - 1.0 / eta2, -bf2) if q > 0 else (1.0 - eta1, -bf1)
+
+    def relation(self, mode, quadrant, w_abs, t, left=False):
+        if mode == FREE:
+            return 1.0, 0.0, 0.0, 0.0
+        k, b = self._quadrant_loss(mode, quadrant, self._interp(w_abs))
+        # tau_loss = k (lam_g + tau_loss) + b  ->  (1 - k) tau_loss - k lam_g = b
+        return 1.0 - k, -k, b, 0.0
+
+    def _limits(self, sa, lam_g):
+        """(tauLossMax_p, tauLossMin_m): the loss torque the gear can hold at w = 0."""
+        eta1, eta2, bf1, bf2, bf_a = self._zero
+        tau_a = lam_g + sa
+        hi = (1 - eta1) * tau_a + bf1 if tau_a - bf_a > 0 else (1 - 1 / eta2) * tau_a + bf2
+        lo = (1 - 1 / eta2) * tau_a - bf2 if tau_a + bf_a > 0 else (1 - eta1) * tau_a - bf1
+        return hi, lo
+
+    def breakaway(self, sa, lam_g):
+        hi, lo = self._limits(sa, lam_g)
+        scale = 1e-12 * max(1.0, abs(sa), abs(lam_g))
+        if sa > hi + scale:
+            return FORWARD
+        if sa < lo - scale:
+            return BACKWARD
+        return 0
+
+    def driving_side(self, mode, tau_loss, lam_g):
+        _, _, _, _, bf_a = self._zero
+        tau_a = lam_g + tau_loss
+        tau_eta = tau_a - bf_a if mode == FORWARD else tau_a + bf_a
+        return 1 if tau_eta >= 0 else -1
+
+    def event_pair(self, mode, quadrant, w, tau_loss, lam_g, t, left):
+        if mode == FREE:
+            return 1.0, 1.0
+        if mode == STUCK:
+            hi, lo = self._limits(tau_loss, lam_g)
+            return hi - tau_loss, tau_loss - lo
+        bf_a = self._interp(abs(w))[4]
+        tau_a = lam_g + tau_loss
+        tau_eta = tau_a - bf_a if mode == FORWARD else tau_a + bf_a
+        return mode * w, quadrant * tau_eta
+
+    def first_step(self, old, w, crossed1, crossed2, initial, scale, arel):
+        if self._ideal:
+            return FREE
+        if initial or old == FREE:
+            return FORWARD if w > scale else BACKWARD if w < -scale else STUCK
+        if old == STUCK:
+            return FORWARD if crossed1 else BACKWARD if crossed2 else STUCK
+        if crossed1 or (abs(w) <= scale and w * arel < 0):
+            return STUCK
+        return old
+
+
 class ChatterGuard:
     """Stops a run when one device changes mode ``count`` times within ``window`` seconds."""
 
@@ -213,7 +341,13 @@ class ChatterGuard:
 
 class FrictionSet:
     """All friction rows of a compiled system: residual rows, Jacobian weights,
-    event functions and the mode logic."""
+    event functions and the mode logic.
+
+    Row j's equation when not stuck is linear in the multipliers:
+    ``c_own lam_j + c_cpl lam_cpl(j) = rhs(w_rel, t)`` (``relation``): a clutch
+    has ``lam_j = mode * tau_k(|w_rel|)``; a lossy gear couples its loss torque
+    to its own mesh-force row ``cpl(j)``.
+    """
 
     def __init__(self, compiled, rows):
         self.c = compiled
@@ -224,6 +358,11 @@ class FrictionSet:
         self.G = compiled.Gf
         self.offset = compiled.mp + compiled.mv   # first friction multiplier in lam
         self.engaged = np.ones(self.mf, bool)      # engagement at the start of the current segment
+        self.quadrant = np.ones(self.mf, int)      # driving side of lossy gears in the current segment
+        cons = compiled.structure.position + compiled.structure.speed
+        index = {id(r): i for i, r in enumerate(cons)}
+        self.coupled = np.array([index[id(compiled.structure.rows[d.name][0])] if d.coupled else -1
+                                 for d in self.devices], dtype=int)
 
     # -- helpers --------------------------------------------------------------
     def _left(self, t):
@@ -238,20 +377,24 @@ class FrictionSet:
     def start_modes(self, t):
         return self.initial_modes()
 
-    def known_forces(self, t, v, modes):
-        """lam of sliding (+-tau_k) and free (0) devices; stuck entries are 0 here."""
+    def relations(self, t, v, modes):
+        """Per row (c_own, c_cpl) and the right-hand sides of the non-stuck rows."""
         left = self._left(t)
         w = self.w_rel(v)
-        out = np.zeros(self.mf)
+        rel, rhs = [], np.zeros(self.mf)
         for j, dev in enumerate(self.devices):
-            m = modes[j]
-            if m in (FORWARD, BACKWARD):
-                out[j] = m * dev.kinetic(abs(w[j]), t, left)[0]
-        return out
+            if modes[j] == STUCK:
+                rel.append((0.0, 0.0))
+                continue
+            c_own, c_cpl, r, _ = dev.relation(int(modes[j]), int(self.quadrant[j]), abs(w[j]), t, left)
+            rel.append((c_own, c_cpl))
+            rhs[j] = r
+        return tuple(rel), rhs
 
     # -- DAE rows ---------------------------------------------------------------
-    def residual_rows(self, t, v, a, lam_f, modes):
+    def residual_rows(self, t, v, a, lam_all, modes):
         left = self._left(t)
+        lam_f = lam_all[self.offset:]
         w = self.w_rel(v)
         arel = self.G @ a
         out = np.empty(self.mf)
@@ -259,44 +402,58 @@ class FrictionSet:
             m = modes[j]
             if m == STUCK:
                 out[j] = arel[j]
-            elif m == FREE:
-                out[j] = lam_f[j]
-            else:
-                out[j] = lam_f[j] - m * dev.kinetic(abs(w[j]), t, left)[0]
+                continue
+            c_own, c_cpl, r, _ = dev.relation(int(m), int(self.quadrant[j]), abs(w[j]), t, left)
+            out[j] = c_own * lam_f[j] - r
+            if c_cpl:
+                out[j] += c_cpl * lam_all[self.coupled[j]]
         return out
 
     def add_pattern(self, pb, woff):
         """Register the friction rows' Jacobian entries; weights start at ``woff``.
 
-        Weights per row j: [slide_j, cj*stuck_j, stuck_j, notstuck_j].
+        Weights per row j: [d(-rhs)/dw_rel, cj*stuck, stuck, c_own, c_cpl].
         """
         c = self.c
         G = self.G.tocoo()
         r = c.r_fric[G.row]
         self.woff = woff
-        # d/dv (sliding law): -m * dtau_k/dw * sign(w) * G  (weight slide_j)
-        pb.weighted(r, c.iv[G.col], G.data, woff + 4 * G.row + 0)
+        k = 5
+        pb.weighted(r, c.iv[G.col], G.data, woff + k * G.row + 0)
         dummy = c.is_dummy_v[G.col]
-        pb.weighted(r[~dummy], c.iv[G.col[~dummy]], G.data[~dummy], woff + 4 * G.row[~dummy] + 1)
-        pb.weighted(r[dummy], c.iad[c.pos_in_Dv[G.col[dummy]]], G.data[dummy], woff + 4 * G.row[dummy] + 2)
+        pb.weighted(r[~dummy], c.iv[G.col[~dummy]], G.data[~dummy], woff + k * G.row[~dummy] + 1)
+        pb.weighted(r[dummy], c.iad[c.pos_in_Dv[G.col[dummy]]], G.data[dummy], woff + k * G.row[dummy] + 2)
         j = np.arange(self.mf)
-        pb.weighted(c.r_fric, c.ilam[self.offset + j], np.ones(self.mf), woff + 4 * j + 3)
-        return 4 * self.mf
+        pb.weighted(c.r_fric, c.ilam[self.offset + j], np.ones(self.mf), woff + k * j + 3)
+        cp = self.coupled >= 0
+        pb.weighted(c.r_fric[cp], c.ilam[self.coupled[cp]], np.ones(int(cp.sum())), woff + k * j[cp] + 4)
+        return k * self.mf
 
     def weights(self, t, v, cj, modes):
         left = self._left(t)
         w = self.w_rel(v)
-        out = np.zeros(4 * self.mf)
+        out = np.zeros(5 * self.mf)
         for j, dev in enumerate(self.devices):
             m = modes[j]
             if m == STUCK:
-                out[4 * j + 1] = cj
-                out[4 * j + 2] = 1.0
+                out[5 * j + 1] = cj
+                out[5 * j + 2] = 1.0
             else:
-                out[4 * j + 3] = 1.0
-                if m in (FORWARD, BACKWARD):
-                    dk = dev.kinetic(abs(w[j]), t, left)[1]
-                    out[4 * j] = -m * dk * np.sign(w[j])
+                c_own, c_cpl, _, drhs = dev.relation(int(m), int(self.quadrant[j]), abs(w[j]), t, left)
+                out[5 * j] = -drhs * np.sign(w[j])
+                out[5 * j + 3] = c_own
+                out[5 * j + 4] = c_cpl
+        return out
+
+    def slopes(self, t, v, modes):
+        """d lam / d w_rel of each non-stuck row (the friction characteristic's slope; 0 when stuck)."""
+        left = self._left(t)
+        w = self.w_rel(v)
+        out = np.zeros(self.mf)
+        for j, dev in enumerate(self.devices):
+            if modes[j] != STUCK:
+                c_own, _, _, drhs = dev.relation(int(modes[j]), int(self.quadrant[j]), abs(w[j]), t, left)
+                out[j] = drhs * np.sign(w[j]) / c_own
         return out
 
     # -- events -------------------------------------------------------------------
@@ -306,10 +463,15 @@ class FrictionSet:
         left = self._left(t)
         v = y[c.iv]
         w = self.w_rel(v)
-        lam = y[c.ilam[self.offset:]]
+        lam_all = y[c.ilam]
+        lam = lam_all[self.offset:]
         out = np.empty(self.n_events)
         for j, dev in enumerate(self.devices):
             m = modes[j]
+            if dev.coupled:
+                out[2 * j], out[2 * j + 1] = dev.event_pair(int(m), int(self.quadrant[j]), w[j], lam[j],
+                                                            lam_all[self.coupled[j]], t, left)
+                continue
             fn = dev.normal_force(t, left)
             if m == STUCK:
                 hold = lam[j] if dev.one_way else abs(lam[j])     # a freewheel holds any negative torque
@@ -346,6 +508,12 @@ class FrictionSet:
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
             engaged = dev.normal_force(t, left) > 0
+            if dev.coupled:
+                new[j] = dev.first_step(int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
+                                        initial, scale, arel[j])
+                if old[j] in (FORWARD, BACKWARD) and new[j] == old[j] and crossed[2 * j + 1] != 0:
+                    self.quadrant[j] = -self.quadrant[j]        # the driving side changed
+                continue
             if dev.one_way:
                 new[j] = self._one_way_step(dev, j, old[j], engaged, w[j], lam[self.offset + j],
                                             crossed[2 * j] != 0, initial, scale, t)
@@ -363,14 +531,29 @@ class FrictionSet:
                 # the root of tau0_max - |lam| was located (to round-off) on either side of zero:
                 # the crossing itself decides, so the restart is where the condition has flipped
                 new[j] = FORWARD if lam[self.offset + j] > 0 else BACKWARD
+        self._flips = set()
         # 2. stuck devices: holding torques of the whole stuck set from one KKT solve; every device
         #    beyond its tau0_max breaks away at once (as in one Modelica event iteration), then repeat
         for _ in range(4 * self.mf + 4):
             v = self._lock_velocities(t, x, v, new, old)
-            a, lam, dz = c.accelerations(t, x, v, z, new)
+            try:
+                a, lam, dz = c.accelerations(t, x, v, z, new)
+            except StructureError:
+                if not self._share_redundant(t, x, v, z, new):
+                    raise
+                continue
             lam_f = lam[self.offset:]
             changed = False
             for j, dev in enumerate(self.devices):
+                if dev.coupled:
+                    if new[j] == STUCK:
+                        d = dev.breakaway(lam_f[j], lam[self.coupled[j]])
+                        if d:
+                            new[j] = d
+                            changed = True
+                    elif new[j] in (FORWARD, BACKWARD) and self._fix_quadrant(j, dev, new, lam):
+                        changed = True
+                    continue
                 if new[j] != STUCK:
                     continue
                 tau0, tau0_max = dev.capacities(t, left)
@@ -394,6 +577,57 @@ class FrictionSet:
         changes = [(self.devices[j].name, int(old[j]), int(new[j])) for j in range(self.mf)
                    if old[j] != new[j] and not initial]
         return y, yp, new, changes
+
+    def _share_redundant(self, t, x, v, z, modes) -> bool:
+        """Resolve stuck devices that lock a motion already locked by others.
+
+        Rule (documented in the README): going through the stuck devices in model
+        order, a device whose relative motion is already fixed by the rigid
+        constraints and the stuck devices before it does not stick; it keeps
+        acting with its kinetic torque at zero speed, in the direction that
+        relieves the device that holds (the holding torque then stays unique).
+        When the holder breaks away, the relative speed leaves zero and the usual
+        logic takes over. Returns False when no stuck friction row is redundant
+        (the model itself is singular).
+        """
+        c = self.c
+        A = [c.Gpv.toarray()] if c.Gpv.shape[0] else []
+        rank = np.linalg.matrix_rank(np.vstack(A)) if A else 0
+        kept, dependent = [], []
+        for j in np.nonzero(np.asarray(modes) == STUCK)[0]:
+            row = self.G[j].toarray()
+            trial = np.vstack(A + [row])
+            r = np.linalg.matrix_rank(trial)
+            if r > rank:
+                A.append(row)
+                kept.append(j)
+                rank = r
+            else:
+                dependent.append(j)
+        if not dependent:
+            return False
+        modes[dependent] = FREE
+        for j in dependent:
+            # the direction that relieves the holders most (smallest largest holding torque)
+            best, best_load = FREE, np.inf
+            for direction in ((FORWARD,) if self.devices[j].one_way else (FORWARD, BACKWARD)):
+                modes[j] = direction
+                _, lam, _ = c.accelerations(t, x, v, z, modes)
+                load = float(np.abs(lam[self.offset + np.array(kept, dtype=int)]).max(initial=0.0))
+                if load < best_load:
+                    best, best_load = direction, load
+            modes[j] = best
+        return True
+
+    def _fix_quadrant(self, j, dev, modes, lam):
+        """Lossy gear rolling: make the assumed driving side agree with the torque (once per settle)."""
+        flips = self.__dict__.setdefault("_flips", set())
+        q = dev.driving_side(int(modes[j]), lam[self.offset + j], lam[self.coupled[j]])
+        if q == self.quadrant[j] or (j in flips):
+            return False
+        flips.add(j)
+        self.quadrant[j] = q
+        return True
 
     @staticmethod
     def _one_way_step(dev, j, old, engaged, w, lam, crossed, initial, scale, t):

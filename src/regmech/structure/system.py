@@ -308,12 +308,12 @@ def _build_structure(model) -> MechanicalStructure:
                              mass=mass, coord_names=names, start_pos=p0, start_vel=v0,
                              devices=devices, rows=rows)
     for dev in devices:
-        kind = dev.device_kind()
-        target = {"compliant": st.compliant, "rigid": st.position, "position": st.position,
-                  "speed": st.speed, "friction": st.friction}.get(kind)
-        if target is None:
-            raise ModelError(f"{type(dev).__name__} '{dev.name}': unknown device kind {kind!r}")
-        target.extend(rows[dev.name])
+        for kind, row in zip(dev.row_kinds(), rows[dev.name]):
+            target = {"compliant": st.compliant, "rigid": st.position, "position": st.position,
+                      "speed": st.speed, "friction": st.friction}.get(kind)
+            if target is None:
+                raise ModelError(f"{type(dev).__name__} '{dev.name}': unknown device kind {kind!r}")
+            target.append(row)
     for row in st.position + st.speed:
         if len(row.cols) == 0:
             raise StructureError(
