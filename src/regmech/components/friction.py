@@ -72,6 +72,14 @@ class FrictionDevice(Device):
     def peak_ratio(self) -> float:
         return self._values.get("peak", 1.0)
 
+    def capacity_function(self):
+        """A fast closure ``(t, left) -> (fn, tau0, tau0_max)`` with the parameters bound
+        (the event functions call it at every root-finding iterate)."""
+        def at(t, left=False):
+            tau0, tau0_max = self.capacities(t, left)
+            return self.normal_force(t, left), tau0, tau0_max
+        return at
+
     def capacities(self, t, left=False):
         tau0 = self.kinetic(0.0, t, left)[0]
         return tau0, self.peak_ratio() * tau0
@@ -126,6 +134,15 @@ class Clutch(_MuMixin, FrictionDevice):
         mu, dmu = self._mu(w_abs)
         return mu * self.cgeo * fn, dmu * self.cgeo * fn
 
+    def capacity_function(self):
+        sig, fn_max, k0, peak = self.f_normalized, self.fn_max, self._mu(0.0)[0] * self.cgeo, self.peak
+
+        def at(t, left=False):
+            fn = fn_max * sig.value(t, left)
+            tau0 = k0 * fn if fn > 0 else 0.0
+            return fn, tau0, peak * tau0
+        return at
+
 
 class OneWayClutch(Clutch):
     """One-way clutch (MSL OneWayClutch): a freewheel in parallel with a clutch, one
@@ -144,6 +161,9 @@ class OneWayClutch(Clutch):
         if self.normal_force(t, left) <= 0:
             return 0.0, self.EPS0 * self._mu(0.0)[0] * self.cgeo * self.fn_max
         return tau0, max(self.peak, 1.0 + self.EPS0) * tau0
+
+    def capacity_function(self):
+        return FrictionDevice.capacity_function(self)
 
 
 class Brake(Clutch):
@@ -244,6 +264,10 @@ class LossyGear(FrictionDevice):
     def rows(self):
         r = self.ratio
         return [{"flange_a": 1.0, "flange_b": -r, "support": r - 1.0}, {"flange_a": 1.0, "support": -1.0}]
+
+    def capacity_function(self):
+        # no normal force; its limits depend on the mesh force (see event_pair / breakaway)
+        return lambda t, left=False: (1.0, 0.0, 0.0)
 
     def row_kinds(self):
         return ["rigid", "friction"]
@@ -364,12 +388,28 @@ class FrictionSet:
         self.coupled = np.array([index[id(compiled.structure.rows[d.name][0])] if d.coupled else -1
                                  for d in self.devices], dtype=int)
 
+        # dense copy of G for the small matrices of typical drivetrains (sparse matvec costs ~10 us)
+        self._Gd = self.G.toarray() if self.G.shape[0] * self.G.shape[1] <= 40000 else None
+        self._at_key, self._at_val = None, None
+        self._cap_fns = [d.capacity_function() for d in self.devices]
+        self._one_way = np.array([d.one_way for d in self.devices], bool)
+        self._coupled_rows = [j for j, d in enumerate(self.devices) if d.coupled]
+
     # -- helpers --------------------------------------------------------------
     def _left(self, t):
         return t >= self.c._t_right
 
     def w_rel(self, v):
-        return self.G @ v
+        return self._Gd @ v if self._Gd is not None else self.G @ v
+
+    def _at(self, t, left):
+        """Normal forces and (tau0, tau0_max) of every device at t, cached for the last t
+        (IDA evaluates residual and event functions at the same instants)."""
+        key = (t, left)
+        if self._at_key != key:
+            vals = np.array([f(t, left) for f in self._cap_fns]).reshape(self.mf, 3)
+            self._at_key, self._at_val = key, (vals[:, 0], vals[:, 1:])
+        return self._at_val
 
     def initial_modes(self):
         return np.full(self.mf, FREE, dtype=int)
@@ -396,7 +436,7 @@ class FrictionSet:
         left = self._left(t)
         lam_f = lam_all[self.offset:]
         w = self.w_rel(v)
-        arel = self.G @ a
+        arel = self.w_rel(a)
         out = np.empty(self.mf)
         for j, dev in enumerate(self.devices):
             m = modes[j]
@@ -458,34 +498,32 @@ class FrictionSet:
 
     # -- events -------------------------------------------------------------------
     def event_values(self, t, y, yp, modes):
-        """Two functions per device, each crossing zero *downwards* when its mode must change."""
+        """Two functions per device, each crossing zero *downwards* when its mode must change:
+
+        * stuck: ``tau0_max - |lam|`` (a freewheel: ``tau0_max - lam``, it holds any negative torque);
+        * sliding: ``mode * w_rel``; free: 1 (a freewheeling one-way clutch: ``w_rel``, it locks at 0);
+        * engagement: ``fn`` while engaged, ``-fn`` while not (a normal force of exactly zero
+          is 'not yet engaged': a tiny positive value keeps IDA from deactivating a root
+          function that is identically zero at the start).
+
+        Vectorised over the devices; lossy gears give their own pair.
+        """
         c = self.c
         left = self._left(t)
-        v = y[c.iv]
-        w = self.w_rel(v)
+        w = self.w_rel(y[c.iv])
         lam_all = y[c.ilam]
         lam = lam_all[self.offset:]
+        modes = np.asarray(modes)
+        fns, caps = self._at(t, left)
+        hold = np.where(self._one_way, lam, np.abs(lam))
+        first = np.where(modes == STUCK, caps[:, 1] - hold,
+                         np.where(modes == FREE, np.where(self._one_way, w, 1.0), modes * w))
+        second = np.where(self.engaged, fns, np.where(fns != 0.0, -fns, 1e-300))
         out = np.empty(self.n_events)
-        for j, dev in enumerate(self.devices):
-            m = modes[j]
-            if dev.coupled:
-                out[2 * j], out[2 * j + 1] = dev.event_pair(int(m), int(self.quadrant[j]), w[j], lam[j],
-                                                            lam_all[self.coupled[j]], t, left)
-                continue
-            fn = dev.normal_force(t, left)
-            if m == STUCK:
-                hold = lam[j] if dev.one_way else abs(lam[j])     # a freewheel holds any negative torque
-                out[2 * j] = dev.capacities(t, left)[1] - hold
-            elif m == FREE:
-                out[2 * j] = w[j] if dev.one_way else 1.0         # a freewheeling one-way clutch locks at 0
-            else:
-                out[2 * j] = m * w[j]
-            if not self.engaged[j]:
-                # a normal force of exactly zero is 'not yet engaged': a tiny positive value keeps
-                # IDA from deactivating a root function that is identically zero at the start
-                out[2 * j + 1] = -fn if fn != 0.0 else 1e-300
-            else:
-                out[2 * j + 1] = fn
+        out[0::2], out[1::2] = first, second
+        for j in self._coupled_rows:
+            out[2 * j], out[2 * j + 1] = self.devices[j].event_pair(
+                int(modes[j]), int(self.quadrant[j]), w[j], lam[j], lam_all[self.coupled[j]], t, left)
         return out
 
     # -- mode logic -----------------------------------------------------------------
@@ -501,7 +539,7 @@ class FrictionSet:
         old = np.array(modes, dtype=int)
         new = old.copy()
         w = self.w_rel(v)
-        arel = self.G @ a
+        arel = self.w_rel(a)
         lam_rate = yp0[c.ilam[self.offset:]]        # d lam/dt at the event (IDA's interpolant)
         scale = 1e-9 * max(1.0, float(np.abs(v).max(initial=0.0)))
         crossed = np.zeros(self.n_events) if crossed is None else np.asarray(crossed)
