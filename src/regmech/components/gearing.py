@@ -7,16 +7,19 @@ unknown; the flange torques are its multiples by the row's coefficients,
 which is where the torque ratios come from (``flange.tau = coef * lam``,
 the torque the device exerts on itself; the bodies receive the opposite).
 
-Efficiency losses are not modelled: the loss of a differential or planetary
-set depends on which link is stopped or carries power (SOURCES.md 003,
-"efficiency with the third link stopped"), which needs the stick/slip
-machinery of the friction devices; see each class's docstring.
+Losses: ``LossyPlanetary`` gives the planetary set the efficiency of its
+basic (carrier-stopped) gear train, with stuck/rolling modes, through the
+``LossyGear`` machinery ("efficiency with the third link stopped", SOURCES.md
+003); ``LimitedSlipDifferential`` adds internal friction (a preloaded clutch
+between the side gears) to the open differential.
 """
 
 from __future__ import annotations
 
-from ..component import Device, Param
+from ..component import Device, Param, Subsystem
 from ..ports import ROTATIONAL
+from .friction import Clutch, LossyGear
+from .inertial import Inertia
 
 
 class Differential(Device):
@@ -76,9 +79,7 @@ class Planetary(Device):
     i.e. sun : ring : carrier = 1 : ratio : -(1 + ratio), as in MSL.
     With the ring held, sun in and carrier out: ``phi_sun = (1 + ratio) phi_carrier``.
 
-    Mesh efficiency is not included: the loss depends on the power flow through
-    the stopped or free link (SOURCES.md 003), which needs the stick/slip
-    machinery (as MSL's LossyGear) and comes in a later step.
+    For mesh losses use ``LossyPlanetary``.
     """
 
     kind = "rigid"
@@ -91,4 +92,60 @@ class Planetary(Device):
         return [{"sun": 1.0, "ring": r, "carrier": -(1.0 + r)}]
 
 
-__all__ = ["Differential", "Planetary"]
+class LossyPlanetary(LossyGear):
+    """Planetary gear set with mesh efficiency and bearing friction of its basic gear train.
+
+    Seen from the carrier, sun and ring form an ordinary gear of ratio
+    ``-ratio`` (``phi_sun - phi_c = -ratio (phi_ring - phi_c)``, Willis), so the
+    set is a ``LossyGear`` between ``sun`` (flange_a) and ``ring`` (flange_b) whose
+    support is the ``carrier``: the efficiency is that of the carrier-stopped
+    train (SOURCES.md 003, "efficiency with the third link stopped"), applied
+    to the power flowing through the meshes in the carrier frame. ``loss_table``
+    rows ``(|w_sun - w_carrier|, eta_mf1, eta_mf2, tau_bf1, tau_bf2)`` as in
+    ``LossyGear`` (1: the sun drives the train, 2: the ring drives it). With the
+    ring held, sun in and carrier out, the output torque is ``(1 + eta ratio)``
+    times the input (efficiency ``(1 + eta ratio) / (1 + ratio)``).
+    ``ratio`` = ring teeth / sun teeth > 0. Signals: ``<name>.mode`` (the mesh
+    train rolling forward/backward or stuck), ``<name>.sun.tau`` etc.
+    """
+
+    ratio = Param(check="positive", doc="number of ring teeth / number of sun teeth")
+    flanges = (("sun", ROTATIONAL), ("carrier", ROTATIONAL), ("ring", ROTATIONAL))
+
+    def rows(self):
+        r = self.ratio
+        # LossyGear rows with flange_a = sun, flange_b = ring, support = carrier, gear ratio -r
+        return [{"sun": 1.0, "ring": r, "carrier": -r - 1.0}, {"sun": 1.0, "carrier": -1.0}]
+
+
+class LimitedSlipDifferential(Subsystem):
+    """Open ``Differential`` with internal friction: a preloaded ``Clutch`` between the two
+    side gears (plate-type limited slip). The side gears get small inertias of their own
+    (``J_side``) so the clutch has a mass on each side.
+
+    Ports ``carrier``, ``left``, ``right``. ``preload`` [N] is the clutch's normal force
+    (``f_normalized`` = 1), ``mu`` and ``cgeo`` [m] its friction coefficient and effective
+    radius: the sides turn together until the torque difference between them exceeds
+    about ``2 * mu * cgeo * preload * peak``; a very large preload locks the differential.
+    """
+
+    ratio = Param(1.0, check="nonzero", doc="carrier angle / mean angle of the sides")
+    preload = Param(check="nonnegative", unit="N", doc="clutch normal force")
+    mu = Param(0.1, check="nonnegative", doc="clutch friction coefficient")
+    cgeo = Param(0.05, check="nonnegative", unit="m", doc="clutch effective radius x surfaces")
+    peak = Param(1.0, check="positive", doc="static over kinetic friction")
+    J_side = Param(0.01, check="positive", unit="kg m^2", doc="inertia of each side gear")
+    ports = {"carrier": "diff.carrier", "left": "side_left.flange_b", "right": "side_right.flange_b"}
+
+    def build(self):
+        diff = self.part(Differential("diff", ratio=self.ratio))
+        left = self.part(Inertia("side_left", J=self.J_side))
+        right = self.part(Inertia("side_right", J=self.J_side))
+        clutch = self.part(Clutch("lock", mu=self.mu, cgeo=self.cgeo, peak=self.peak, fn_max=self.preload))
+        self.link(diff.left, left.flange_a)
+        self.link(diff.right, right.flange_a)
+        self.link(left.flange_a, clutch.flange_a)
+        self.link(right.flange_a, clutch.flange_b)
+
+
+__all__ = ["Differential", "Planetary", "LossyPlanetary", "LimitedSlipDifferential"]
