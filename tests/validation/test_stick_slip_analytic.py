@@ -154,3 +154,16 @@ def test_clutch_engaging_at_exactly_zero_relative_speed_sticks():
     res = m.simulate(1.0, dt_out=1e-2, rtol=1e-9)
     assert [(e.t, e.old_mode, e.new_mode) for e in res.events] == [(0.5, 2, 0)]
     assert np.allclose(res["J1.w"], res["J2.w"], atol=1e-12)
+
+
+def test_bearing_friction_spins_down_and_stays_stopped():
+    # constant bearing torque 2 N m (table), J = 0.5, w0 = 8: stops at t = J w0 / 2 = 2 s, then stays
+    m = rm.Model("spin_down")
+    J = m.add(Inertia("J", J=0.5, phi0=0.0, w0=8.0))
+    b = m.add(rm.components.BearingFriction("bearing", tau_table=[(0.0, 2.0), (100.0, 2.0)], peak=1.5))
+    m.connect(J.flange_b, b.flange)
+    res = m.simulate(3.0, dt_out=1e-2, rtol=1e-9)
+    assert [(e.old_mode, e.new_mode) for e in res.events] == [(1, 0)]
+    assert res.events[0].t == pytest.approx(2.0, abs=1e-9)
+    assert np.allclose(res["J.w"], np.maximum(8.0 - 4.0 * res.t, 0.0), atol=1e-9)
+    assert np.all(res["J.w"][res.t > 2.0] == 0.0)
