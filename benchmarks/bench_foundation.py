@@ -386,13 +386,21 @@ def baseline_tree(rev: str) -> str:
     return os.path.join(tmp, "src")
 
 
-def build_section(sizes, repeat, pythonpath=None) -> dict:
-    out = {}
+def build_section(sizes, repeat, baseline_path=None) -> tuple[dict, dict | None]:
+    """Median build/structure/compile times; with a baseline, its runs alternate with ours (same load)."""
+    new, old = {}, ({} if baseline_path else None)
     for kind, n in [("chain", s) for s in sizes] + [("mixed", sizes[0]), ("mixed", sizes[-1])]:
-        runs = [run_worker(["build", kind, str(n)], pythonpath) for _ in range(repeat)]
-        out[f"{kind} {n}"] = {k: statistics.median(r[k] for r in runs) for k in ("build", "structure", "compile")}
-        out[f"{kind} {n}"]["N"] = runs[0]["N"]
-    return out
+        runs_new, runs_old = [], []
+        for _ in range(repeat):
+            runs_new.append(run_worker(["build", kind, str(n)]))
+            if baseline_path:
+                runs_old.append(run_worker(["build", kind, str(n)], baseline_path))
+        for store, runs in ((new, runs_new), (old, runs_old)):
+            if store is None:
+                continue
+            store[f"{kind} {n}"] = {k: statistics.median(r[k] for r in runs) for k in ("build", "structure", "compile")}
+            store[f"{kind} {n}"]["N"] = runs[0]["N"]
+    return new, old
 
 
 def fmt_us(s: float) -> str:
@@ -499,9 +507,8 @@ def main(argv=None) -> int:
     info = machine_info()
     print("\n".join(info), flush=True)
     old_path = baseline_tree(args.baseline) if args.baseline else None
-    build_new = build_section(sizes, args.repeat)
+    build_new, build_old = build_section(sizes, args.repeat, old_path)
     print("build/compile:", json.dumps(build_new), flush=True)
-    build_old = build_section(sizes, args.repeat, old_path) if old_path else None
     if build_old:
         print("build/compile before:", json.dumps(build_old), flush=True)
     ev = ["eval", ",".join(map(str, eval_sizes)), str(args.repeat)]
