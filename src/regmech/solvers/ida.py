@@ -26,13 +26,66 @@ from . import register
 from .common import Recorder, check_times, output_grid, signal_breakpoints
 
 
-def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events):
+class _Ordering:
+    """The solver's view of the unknowns: identity, or a bandwidth-reducing permutation
+    (``y_solver = y[perm]``) for the band solver. Equations are permuted alike."""
+
+    def __init__(self, n, perm=None):
+        self.perm = perm
+        if perm is not None:
+            self.inv = np.empty_like(perm)
+            self.inv[perm] = np.arange(n)
+            self._y = np.empty(n)
+            self._yp = np.empty(n)
+            self._r = np.empty(n)
+
+    def to_solver(self, y):
+        return y if self.perm is None else y[self.perm]
+
+    def from_solver(self, ys):
+        return ys if self.perm is None else ys[..., self.inv]
+
+    def full(self, y, yp):
+        if self.perm is None:
+            return y, yp
+        self._y[self.perm] = y
+        self._yp[self.perm] = yp
+        return self._y, self._yp
+
+
+def choose_linsolver(c, dense_max=60, band_max=40):
+    """dense (analytic Jacobian) for small systems; band on a reverse Cuthill-McKee ordering
+    when it is narrow (IDA's difference quotients cost lband + uband + 1 residuals, and
+    SuperLU_MT has a fixed cost of milliseconds per factorisation); sparse otherwise."""
+    if c.N <= dense_max:
+        return "dense", _Ordering(c.N)
+    band = c.__dict__.get("_band_ordering")
+    if band is None:
+        from ..compile.assembly import banded_ordering
+        band = c._band_ordering = banded_ordering(c.jac.pattern)
+    perm, lb, ub = band
+    if lb + ub + 1 <= band_max:
+        return "band", _Ordering(c.N, perm)
+    return "sparse", _Ordering(c.N)
+
+
+def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order):
     import sksundae
 
-    def resfn(t, y, yp, res):
-        c.residual(t, y, yp, res, modes)
+    if order.perm is None:
+        def resfn(t, y, yp, res):
+            c.residual(t, y, yp, res, modes)
+    else:
+        perm, r_full = order.perm, order._r
 
-    opts = dict(rtol=rtol, atol=atol, algebraic_idx=c.algebraic, max_num_steps=200000,
+        def resfn(t, y, yp, res):
+            yf, ypf = order.full(y, yp)
+            c.residual(t, yf, ypf, r_full, modes)
+            res[:] = r_full[perm]
+
+    alg = c.algebraic if order.perm is None else np.sort(order.inv[c.algebraic])
+    atol = order.to_solver(atol) if np.ndim(atol) else atol
+    opts = dict(rtol=rtol, atol=atol, algebraic_idx=alg, max_num_steps=200000,
                 max_order=max_order, calc_initcond=None)
     if max_step:
         opts["max_step"] = max_step
@@ -41,23 +94,25 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
 
         def jacfn(t, y, yp, res, cj, JJ):
             JJ[:, :] = 0.0
-            np.add.at(JJ, (rows, cols), c.jacobian_data(t, y, yp, cj, modes))
+            JJ[rows, cols] = c.jacobian_data(t, y, yp, cj, modes)     # pattern entries are unique
         opts.update(linsolver="dense", jacfn=jacfn)
     elif linsolver == "sparse":
         def jacfn(t, y, yp, res, cj, JJ):
             JJ[:] = c.jacobian_data(t, y, yp, cj, modes)
         opts.update(linsolver="sparse", sparsity=c.jac.pattern, jacfn=jacfn)
     elif linsolver == "band":
-        pat = c.jac.pattern.tocoo()
-        opts.update(linsolver="band", lband=int(max(0, (pat.row - pat.col).max())),
-                    uband=int(max(0, (pat.col - pat.row).max())))
+        P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
+        pat = P.tocoo()
+        opts.update(linsolver="band", lband=int(max(0, (pat.row - pat.col).max(initial=0))),
+                    uband=int(max(0, (pat.col - pat.row).max(initial=0))))
     else:
         raise SimulationError(f"unknown linsolver {linsolver!r}; use 'dense', 'sparse' or 'band'")
     if with_events:
         fr = c.friction
 
         def eventsfn(t, y, yp, ev):
-            ev[:] = fr.event_values(t, y, yp, modes)
+            yf, ypf = order.full(y, yp)
+            ev[:] = fr.event_values(t, yf, ypf, modes)
         eventsfn.terminal = [True] * fr.n_events
         eventsfn.direction = [-1] * fr.n_events
         opts.update(eventsfn=eventsfn, num_events=fr.n_events)
@@ -93,7 +148,11 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     t0 = time.perf_counter()
     atol = rtol * 1e-2 if atol is None else atol
     if linsolver is None:
-        linsolver = "dense" if c.N <= dense_max else "sparse"
+        linsolver, order = choose_linsolver(c, dense_max)
+    elif linsolver == "band":
+        order = choose_linsolver(c, 0, np.inf)[1]
+    else:
+        order = _Ordering(c.N)
     grid = output_grid(t_start, t_end, dt_out)
     bps = signal_breakpoints(model, t_start, t_end)
     fr = c.friction
@@ -112,7 +171,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     t_stop = next(bp_iter)
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     k_max = float(np.abs(c.stiffness_estimate()).max(initial=0.0)) if c.Sc.shape[0] else 0.0
-    opts = (rtol, atol, linsolver, max_step, max_order, k_max)
+    opts = (rtol, atol, linsolver, max_step, max_order, k_max, order)
     while t < t_end:
         c._t_right = t_stop
         if t_stop - t <= 1e-13 * max(1.0, abs(t)):
@@ -183,6 +242,17 @@ def _atol_vector(c, atol, y, yp, k_max):
     return vec
 
 
+def _unpermute(sol, order):
+    """Solution arrays back in the compiled system's order."""
+    for name in ("y", "yp", "y_events", "yp_events"):
+        val = getattr(sol, name, None)
+        if val is not None and len(val):
+            try:
+                setattr(sol, name, order.from_solver(np.asarray(val)))
+            except AttributeError:
+                sol.__dict__[name] = order.from_solver(np.asarray(val))
+
+
 def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
     """One IDA run from t to t_stop (or to the first mode event); records the output rows.
 
@@ -190,9 +260,9 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
     events function and accumulates across ``solve`` calls.
     """
     with_events = bool(c.friction) and c.friction.n_events > 0
-    rtol, atol, linsolver, max_step, max_order, k_max = opts
+    rtol, atol, linsolver, max_step, max_order, k_max, order = opts
     atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max)
-    solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events)
+    solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order)
     tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end
     inner = grid[(grid > t + tol) & (grid < t_stop - tol)]
     tspan = np.concatenate([[t], inner, [t_stop]])
@@ -201,7 +271,9 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
         tspan = np.array([t, 0.5 * (t + t_stop), t_stop])
         record = np.array([True, False, True])
     try:
-        sol = solver.solve(tspan, y, yp)
+        sol = solver.solve(tspan, order.to_solver(y), order.to_solver(yp))
+        if order.perm is not None:
+            _unpermute(sol, order)
     except (RuntimeError, ValueError, KeyError) as exc:
         raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "
                               f"involved: {_blame(c, y, yp)}") from exc
