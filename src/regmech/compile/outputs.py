@@ -24,7 +24,14 @@ class Trajectory:
         self.left = np.asarray(left, bool)
         self.modes = modes
         self._mat: dict = {}
-        self._index = self._build_index()
+        self._index_cache = None
+
+    @property
+    def _index(self):
+        """name -> recipe, built on first use (it costs ~0.3 s for 1,000 masses)."""
+        if self._index_cache is None:
+            self._index_cache = self._build_index()
+        return self._index_cache
 
     # matrices over time -------------------------------------------------------
     def _matrices(self):
