@@ -101,6 +101,8 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("scenes", help="list the ready-made scenes")
     p.set_defaults(func=_scenes)
     sub.add_parser("modes", help="natural frequencies and mode shapes of a scene (regmech modes -h)")
+    sub.add_parser("sweep", help="parameter study of a scene (regmech sweep -h)")
+    sub.add_parser("bench", help="work-precision benchmark of the solvers (regmech bench -h)")
     args = parser.parse_args(argv)
     return args.func(args)
 
