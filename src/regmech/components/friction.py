@@ -393,6 +393,7 @@ class FrictionSet:
         self._at_key, self._at_val = None, None
         self._cap_fns = [d.capacity_function() for d in self.devices]
         self._one_way = np.array([d.one_way for d in self.devices], bool)
+        self._ev_key, self._ev_masks = None, None
         self._coupled_rows = [j for j, d in enumerate(self.devices) if d.coupled]
 
     # -- helpers --------------------------------------------------------------
@@ -515,10 +516,23 @@ class FrictionSet:
         lam = lam_all[self.offset:]
         modes = np.asarray(modes)
         fns, caps = self._at(t, left)
-        hold = np.where(self._one_way, lam, np.abs(lam))
-        first = np.where(modes == STUCK, caps[:, 1] - hold,
-                         np.where(modes == FREE, np.where(self._one_way, w, 1.0), modes * w))
-        second = np.where(self.engaged, fns, np.where(fns != 0.0, -fns, 1e-300))
+        # masks depend on the segment's modes only: computed once per segment
+        key = (modes.tobytes(), self.engaged.tobytes())
+        if self._ev_key != key:
+            stuck = modes == STUCK
+            free = modes == FREE
+            self._ev_masks = (stuck, stuck & self._one_way, stuck & ~self._one_way, free & self._one_way,
+                              free & ~self._one_way, ~stuck & ~free, np.where(~stuck & ~free, modes, 0))
+            self._ev_key = key
+        stuck, st_ow, st_2w, fr_ow, fr_2w, slide, sign = self._ev_masks
+        first = sign * w
+        first[st_ow] = caps[st_ow, 1] - lam[st_ow]
+        first[st_2w] = caps[st_2w, 1] - np.abs(lam[st_2w])
+        first[fr_ow] = w[fr_ow]
+        first[fr_2w] = 1.0
+        second = fns.copy()
+        off = ~self.engaged
+        second[off] = np.where(fns[off] != 0.0, -fns[off], 1e-300)
         out = np.empty(self.n_events)
         out[0::2], out[1::2] = first, second
         for j in self._coupled_rows:
