@@ -1,7 +1,8 @@
 """Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``.
 
 ``regmech demo --out DIR`` simulates ready-made drivetrain scenes with IDA
-(MSL First: motor, gear, elastic load; CoupledClutches: stick/slip), checks
+(MSL First: motor, gear, elastic load; CoupledClutches: stick/slip; a car's
+launch through a slipping clutch), checks
 them against the MSL reference data when it is found next to the checkout,
 and writes CSV results and PNG plots to DIR.
 """
@@ -15,13 +16,15 @@ from pathlib import Path
 
 
 def _demo(args) -> int:
-    from regmech.library import coupled_clutches, first
+    from regmech.library import coupled_clutches, first, vehicle_launch
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     runs = [
         ("first", first(), 1.0, ["inertia1.w", "inertia2.w", "inertia3.w"], ["spring.tau", "idealGear.tau"]),
         ("coupled_clutches", coupled_clutches(), 1.5, ["J1.w", "J2.w", "J3.w", "J4.w"],
          ["clutch1.tau", "clutch2.tau", "clutch3.tau"]),
+        ("vehicle_launch", vehicle_launch(), 3.0, ["flywheel.w", "gearbox_in.w", "wheel_left.J.w"],
+         ["clutch.tau", "driveshaft.tau"]),
     ]
     for name, model, t_end, speeds, torques in runs:
         t0 = time.perf_counter()
@@ -60,7 +63,9 @@ def _compare_reference(name, res):
     cands = [p / "shared" / "reference" / "msl" for p in list(here.parents)[:6]] + \
             [Path.cwd().parent / "shared" / "reference" / "msl"]
     ref_dir = next((p for p in cands if p.is_dir()), None)
-    file = {"first": "First.csv", "coupled_clutches": "CoupledClutches.csv"}[name]
+    file = {"first": "First.csv", "coupled_clutches": "CoupledClutches.csv"}.get(name)
+    if file is None:
+        return
     if ref_dir is None or not (ref_dir / file).exists():
         return
     ref = np.genfromtxt(ref_dir / file, delimiter=",", names=True)
