@@ -1,0 +1,144 @@
+"""Full-size benchmark runs behind BENCHMARKS.md.
+
+    python benchmarks/run_benchmarks.py --wp        # work-precision of every solver on every scene
+    python benchmarks/run_benchmarks.py --hard      # hard cases at full size, every solver
+    python benchmarks/run_benchmarks.py --assemble  # BENCHMARKS.md from benchmarks/results/*.md
+    python benchmarks/run_benchmarks.py --all       # the three in turn
+
+Outputs: ``benchmarks/results/work_precision.md`` (with ``results/wp/``: CSV
+and one log-log plot per scene), ``benchmarks/results/hard_cases.md`` (and
+``results/wp/hard_cases.csv``), and ``BENCHMARKS.md`` at the top of the
+repository, assembled from the sections in ``benchmarks/results/`` that exist
+(``foundation.md``, ``work_precision.md``, ``hard_cases.md``, ``modal.md``,
+``solvers_ode.md``, ``expm.md``, ``sweep.md``). The "which solver to pick"
+text of BENCHMARKS.md is kept between its markers when the file is
+re-assembled (it is written by hand from the figures).
+
+Options: ``--scenes``, ``--solvers``, ``--repeats`` (3), ``--time-limit`` per
+run [s] (120 for work-precision, 60 for hard cases), ``--cache`` (reference
+cache folder), ``--cases`` (hard-case keys).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import re
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+WP_DIR = RESULTS / "wp"
+SECTIONS = ["foundation.md", "work_precision.md", "hard_cases.md", "solvers_ode.md", "expm.md", "modal.md",
+            "sweep.md"]
+PICK_BEGIN, PICK_END = "<!-- which-solver:begin -->", "<!-- which-solver:end -->"
+
+
+def run_wp(args) -> None:
+    from regmech.bench.report import write_report
+    from regmech.bench.runner import available_solvers
+    from regmech.bench.scenes import select
+    from regmech.bench.workprecision import run_work_precision
+    scenes = select(args.scenes)
+    solvers = args.solvers or available_solvers()
+    cmd = "python benchmarks/run_benchmarks.py --wp" + (" --scenes " + " ".join(args.scenes) if args.scenes else "")
+    run = run_work_precision(scenes, solvers, repeats=args.repeats, limit=args.time_limit or 120.0,
+                             cache_dir=Path(args.cache) if args.cache else None, command=cmd,
+                             log=lambda m: print(m, file=sys.stderr))
+    md = write_report(run, WP_DIR)
+    text = md.read_text().replace("](wp_", "](wp/wp_")      # the Markdown lives one folder up
+    (RESULTS / "work_precision.md").write_text(text)
+    print(f"work-precision: {len(run.records)} runs in {run.wall_total / 60:.1f} min -> {RESULTS / 'work_precision.md'}")
+
+
+def run_hard(args) -> None:
+    from regmech.bench.hard import FULL, all_cases, hard_markdown, run_cases
+    from regmech.bench.machine import machine_info
+    from regmech.bench.runner import available_solvers
+    cases = [c for c in all_cases() if not args.cases or c.key in args.cases]
+    solvers = args.solvers or available_solvers()
+    limit = args.time_limit or 60.0
+    t0 = time.perf_counter()
+    outcomes = run_cases(cases, solvers, size=FULL, limit=limit)
+    wall = time.perf_counter() - t0
+    WP_DIR.mkdir(parents=True, exist_ok=True)
+    with open(WP_DIR / "hard_cases.csv", "w", newline="") as fh:
+        rows = [asdict(o) for o in outcomes]
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    (RESULTS / "hard_cases.md").write_text(hard_markdown(cases, outcomes, solvers, FULL, machine_info(), limit, wall))
+    print(f"hard cases: {len(outcomes)} runs in {wall / 60:.1f} min -> {RESULTS / 'hard_cases.md'}")
+
+
+def _demote(text: str, prefix: str) -> str:
+    """Headings one level down (sections under the BENCHMARKS.md title); relative links re-rooted."""
+    out = []
+    fence = False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            fence = not fence
+        if not fence and re.match(r"#{1,5} ", line):
+            line = "#" + line
+        out.append(line)
+    text = "\n".join(out)
+    return re.sub(r"\]\((?!https?:|/|#)([^)]+)\)", lambda m: f"]({prefix}{m.group(1)})", text)
+
+
+def assemble(args) -> Path:
+    from regmech.bench.machine import machine_info, machine_line
+    target = ROOT / "BENCHMARKS.md"
+    old = target.read_text() if target.exists() else ""
+    if PICK_BEGIN in old and PICK_END in old:
+        pick = old[old.index(PICK_BEGIN): old.index(PICK_END) + len(PICK_END)]
+    else:
+        pick = f"{PICK_BEGIN}\n(written from the figures below after a full run)\n{PICK_END}"
+    present = [s for s in SECTIONS if (RESULTS / s).exists()]
+    parts = ["# Benchmarks", "",
+             "Measured with the scripts in `benchmarks/` on a shared 2-core machine (medians of several runs; "
+             "ratios against scipy measured side by side in the same run). Each section names its machine and "
+             "versions; assembled by `python benchmarks/run_benchmarks.py --assemble` on "
+             f"{machine_line({k: v for k, v in machine_info().items() if k in ('cpu', 'cores (nproc)', 'python', 'numpy', 'scipy', 'scikit-sundae', 'date')})}.",
+             "", "Sections: " + ", ".join(f"[{s[:-3]}](#{_anchor(s)})" for s in present) + ".", "",
+             "## Which solver to pick", "", pick, ""]
+    for s in present:
+        parts += [_demote((RESULTS / s).read_text().strip(), "benchmarks/results/"), ""]
+    target.write_text("\n".join(parts))
+    print(f"assembled {target} from {present}")
+    return target
+
+
+def _anchor(section_file: str) -> str:
+    title = (RESULTS / section_file).read_text().splitlines()[0].lstrip("# ").strip().lower()
+    return re.sub(r"[^a-z0-9 -]", "", title).replace(" ", "-")
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--wp", action="store_true", help="work-precision run (full size)")
+    p.add_argument("--hard", action="store_true", help="hard cases (full size)")
+    p.add_argument("--assemble", action="store_true", help="assemble BENCHMARKS.md")
+    p.add_argument("--all", action="store_true", help="--wp, --hard and --assemble")
+    p.add_argument("--scenes", nargs="+")
+    p.add_argument("--cases", nargs="+")
+    p.add_argument("--solvers", nargs="+")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--time-limit", type=float, default=None)
+    p.add_argument("--cache", default=None)
+    args = p.parse_args(argv)
+    if not (args.wp or args.hard or args.assemble or args.all):
+        p.error("choose --wp, --hard, --assemble or --all")
+    if args.wp or args.all:
+        run_wp(args)
+    if args.hard or args.all:
+        run_hard(args)
+    if args.assemble or args.all:
+        assemble(args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
