@@ -187,9 +187,63 @@ def test_explicit_blow_up_is_explained():
         m.simulate(1.0, 0.05, solver="euler", h=0.005)      # |u| ~ 9^200: finite, but beyond any physics
 
 
+@pytest.fixture(scope="module")
+def stiff_chain():
+    """3 masses, c = 1e5: highest frequency ~570 rad/s, so rk4 is stable up to h ~ 2.785/570 = 4.9e-3 s."""
+    m = chain(3, c=1e5)
+    return m, m.simulate(0.5, 0.05, solver="ida", rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("solver, stable, unstable", [("rk4", 2e-3, 6e-3), ("abm", 1e-3, 2.5e-3)])
+def test_divergence_beyond_the_stability_limit_is_an_error(stiff_chain, solver, stable, unstable):
+    m, ref = stiff_chain
+    res = m.simulate(0.5, 0.05, solver=solver, h=stable)
+    assert max_error(res, ref, CHAIN_SIGNALS, relative=True) < 0.3
+    assert res.stats.extra["state_growth"] < 10 and res.stats.extra["roughness"] < 0.5     # far from the limits
+    with pytest.raises(SimulationError) as info:
+        m.simulate(0.5, 0.05, solver=solver, h=unstable)
+    msg = str(info.value)
+    # names the solver, the time, the step, the stable step and the remedies
+    for part in (f"solver '{solver}' diverged at t=", "step h=", "spectral radius", "h <= ", "'ida'"):
+        assert part in msg, (part, msg)
+    # before the growth tests the same run came back as a normal result: finite, below 1e100, and garbage
+    res = m.simulate(0.5, 0.05, solver=solver, h=unstable, max_growth=None)
+    assert max_error(res, ref, CHAIN_SIGNALS, relative=True) > 1e6
+
+
+def free_body(tau, J=1e-3, w0=1e-9):
+    m = rm.Model("free_body")
+    fixed = m.add(Fixed("fixed"))
+    drive = m.add(Torque("drive", tau=tau))
+    body = m.add(Inertia("J", J=J, phi0=0.0, w0=w0))
+    m.connect(drive.support, fixed.flange)
+    m.connect(drive.flange, body.flange_a)
+    return m
+
+
+def test_late_forcing_and_polynomial_growth_are_not_divergence():
+    # a declared step torque at 0.95 s lifts the speed of a body (nearly at rest until then) 1e13-fold:
+    # the forcing that appears in the last segment explains it
+    res = free_body(Step(height=1e3, start_time=0.95)).simulate(1.0, 0.01, solver="rk4", h=1e-3)
+    assert res["J.w"][-1] == pytest.approx(1e6 * 0.05, rel=1e-9)
+    # a ramp from rest: phi ~ t^3, the state grows 1e9-fold over the run, polynomially
+    from regmech.signals import Ramp
+    res = free_body(Ramp(height=10.0, duration=10.0), w0=0.0).simulate(10.0, 0.1, solver="rk4", h=0.01)
+    assert res["J.phi"][-1] == pytest.approx(1e4 * 10.0 ** 3 / 6 / 10, rel=1e-9)
+    assert res.stats.extra["state_growth"] < 2.5 ** 3
+    # the same late step as an undeclared callable cannot be told from divergence (documented limitation);
+    # max_growth=None accepts it
+    late = free_body(lambda t: 1e3 if t >= 0.95 else 0.0)
+    with pytest.raises(SimulationError, match="max_growth"):
+        late.simulate(1.0, 0.01, solver="rk4", h=1e-3)
+    res = late.simulate(1.0, 0.01, solver="rk4", h=1e-3, max_growth=None)
+    assert res["J.w"][-1] == pytest.approx(1e6 * 0.05, rel=1e-2)     # the step ending on the jump sees part of it
+
+
 @pytest.mark.parametrize("solver, bad", [("rk4", {"rtol": 1e-6}), ("scipy:RK45", {"h": 1e-3}),
                                          ("convolution", {"order": 3}), ("euler", {"h": -1.0}),
-                                         ("scipy:BDF", {"rtol": 0.0})])
+                                         ("scipy:BDF", {"rtol": 0.0}), ("rk4", {"max_growth": 1.0}),
+                                         ("convolution", {"corrector": "newton"})])
 def test_bad_options_are_refused(solver, bad):
     with pytest.raises(ParameterError):
         chain(2).simulate(0.1, 0.01, solver=solver, **bad)

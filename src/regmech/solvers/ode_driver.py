@@ -36,10 +36,9 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import SimulationError
 from ..result import Event, Result, Stats
 from .common import Recorder, check_times, output_grid, signal_breakpoints
+from .divergence import BLOW_UP, MAX_GROWTH, ROUGH, ROUGH_STEPS, GrowthWatch  # noqa: F401 (BLOW_UP re-exported)
 
 EPS = np.finfo(float).eps
-#: a state beyond this magnitude (or NaN) means the integration has gone unstable: no drivetrain gets there
-BLOW_UP = 1e100
 
 
 # ---------------------------------------------------------------------------- problem
@@ -290,6 +289,15 @@ class Stepper:
     def stats(self) -> dict:
         return {}
 
+    #: ``h * rho`` (step times spectral radius of dg/du) up to which an explicit method is stable on the
+    #: negative real axis; None for methods without such a bound. Used to explain a divergence.
+    stability_bound: float | None = None
+
+    def divergence_remedy(self) -> str:
+        """What the user can do when this stepper's run diverged (appended to the error message)."""
+        return (" Use a smaller step or a tighter rtol, or a stiff (implicit) solver: 'ida', 'scipy:Radau', "
+                "'scipy:BDF' or 'convolution'.")
+
 
 # ------------------------------------------------------------------- recording
 def consistent_row(c, t, u, modes):
@@ -393,29 +401,63 @@ class SegmentEnd:
     crossed: int | None = None      # index of the event function, None at the segment end
 
 
-def _stability_message(problem, t, u, name):
-    """Explain a blow-up of an explicit method by the spectral radius of dg/du at the segment start."""
+def _spectral_radius(problem, t, u):
+    """Largest |eigenvalue| of dg/du at (t, u), or None when it cannot be computed."""
     try:
         J = problem.jacobian(t, u)
         if J.shape[0] <= 600:
-            rho = float(np.max(np.abs(np.linalg.eigvals(J.toarray()))))
-        else:
-            from scipy.sparse.linalg import eigs
-            rho = float(np.abs(eigs(J, k=1, which="LM", return_eigenvectors=False))[0])
-    except Exception:  # the message is a hint only; the failure itself is reported below
-        return ""
-    return (f" The spectral radius of the Jacobian is about {rho:.3g} 1/s; an explicit method needs a step of "
-            f"order 1/{rho:.3g} = {1 / rho:.3g} s or below (pass h=...), or use an implicit solver "
-            f"('ida', 'scipy:Radau', 'scipy:BDF').")
+            return float(np.max(np.abs(np.linalg.eigvals(J.toarray()))))
+        from scipy.sparse.linalg import eigs
+        return float(np.abs(eigs(J, k=1, which="LM", return_eigenvectors=False))[0])
+    except Exception:  # the spectral radius only explains the failure; the failure itself is reported anyway
+        return None
+
+
+def _stability_message(problem, t, u, stepper):
+    """Explain the divergence of an explicit method by the spectral radius of dg/du at (t, u)."""
+    rho = _spectral_radius(problem, t, u)
+    if not rho:
+        return stepper.divergence_remedy()
+    bound = stepper.stability_bound
+    limit = (f"this method is stable for h * rho up to about {bound:g} on the negative real axis, i.e. "
+             f"h <= {bound / rho:.3g} s" if bound else f"an explicit method needs a step of order "
+             f"1/{rho:.3g} = {1 / rho:.3g} s or below")
+    return (f" The spectral radius of the Jacobian is about {rho:.3g} 1/s; {limit}. Pass a smaller h (h=...), "
+            f"or use a stiff (implicit) solver: 'ida', 'scipy:Radau', 'scipy:BDF' or 'convolution'.")
+
+
+def _divergence_error(problem, stepper, name, why, growth, explicit, t_seg, u_seg):
+    """The ``SimulationError`` for a run stopped by the divergence criterion (``divergence.GrowthWatch``);
+    an explicit method's message gives the spectral radius at the segment start (t_seg, u_seg)."""
+    c = problem.c
+    h = stepper.t - stepper.t_old
+    if why.kind == "blow-up":
+        what = f"a state became non-finite or beyond {BLOW_UP:g} (|u|max = {why.norm:.3g})"
+    elif why.kind == "growth":
+        what = (f"the state grew to |u|max = {why.norm:.3g}, more than max_growth = {growth.max_growth:g} "
+                f"times its reference scale {why.reference:.3g} (its largest value in the first half of the "
+                f"run, or what the forcing can explain)")
+    else:
+        what = (f"over the last {ROUGH_STEPS} steps the state grew from |u|max = {why.reference:.3g} to "
+                f"{why.norm:.3g} while changing at every step by more than {ROUGH:g} times its size (a growing "
+                f"oscillation that the steps do not resolve)")
+    remedy = _stability_message(problem, t_seg, u_seg, stepper) if explicit else stepper.divergence_remedy()
+    return SimulationError(
+        f"solver '{name}' diverged at t={stepper.t:.6g} s (step h={h:.3g} s) in model '{c.model.name}': {what}; "
+        f"the integration is numerically unstable (see regmech.solvers.divergence).{remedy}")
 
 
 def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None, *, max_events=100000,
-                 chatter_window=None, chatter_count=50, explicit=False):
+                 chatter_window=None, chatter_count=50, explicit=False, max_growth=MAX_GROWTH):
     """Run ``model`` with the stepper factory of an ODE-form solver; returns a ``Result``.
 
     ``make_stepper(problem, t0, u0, t_bound, knots)`` builds a stepper for one
     segment; ``knots`` are the output instants in ``(t0, t_bound]`` (fixed-step
-    methods land on them exactly, adaptive ones interpolate).
+    methods land on them exactly, adaptive ones interpolate). A run whose
+    state grows more than ``max_growth`` times beyond the scale of its start
+    state and forcing (``divergence.GrowthWatch``; None: only non-finite or
+    beyond 1e100) stops with ``SimulationError``; ``explicit`` adds the
+    spectral radius and the stable step to the message.
     """
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
     tc = time.perf_counter()
@@ -441,6 +483,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     rec.add(t_start, y, yp, modes)
     watch = EventWatch(c, fr) if (fr and fr.n_events > 0) else None
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
+    growth = GrowthWatch(t_start, u, max_growth)
     extra = {"rejected": 0}
     t = t_start
     while True:
@@ -448,8 +491,12 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         problem.modes = modes
         inner = grid[(grid > t) & (grid < t_stop)]
         knots = np.append(inner, t_stop)
-        end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, rec, stats, extra, name, explicit)
-        stats.segments += 1
+        if t < t_stop:
+            end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec, stats, extra, name,
+                               explicit)
+            stats.segments += 1
+        else:
+            end = SegmentEnd(t_stop, u)     # an event landed on the breakpoint: nothing left of this segment
         if end.crossed is not None:
             t, u = end.t, end.u
             y_ev, yp_ev = c.y_from_ode(t, u, modes)
@@ -488,15 +535,18 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     stats.rhs_calls = problem.nfev
     stats.jac_calls += problem.njev
     stats.events = len(events)
+    extra["state_growth"] = growth.largest_ratio          # how close the run came to the divergence tests
+    extra["roughness"] = growth.largest_roughness
     stats.extra.update(extra)
     from ..compile.outputs import Trajectory
     T, Y, YP, L, MO = rec.arrays()
     return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
 
 
-def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, rec, stats, extra, name, explicit):
+def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec, stats, extra, name, explicit):
     """Integrate one segment; record the grid points inside it; stop at a crossing or at ``t_stop``."""
     c, modes = problem.c, problem.modes
+    growth.segment_start(problem.rhs, t, t_stop, len(u))
     stepper = make_stepper(problem, t, u, t_stop, knots)
     if watch is not None:
         watch.arm(watch.values(t, u, modes))
@@ -506,11 +556,9 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, rec, stats, 
         while stepper.t < t_stop:
             with np.errstate(over="ignore", invalid="ignore"):     # a blow-up is reported just below
                 stepper.step()
-            if not np.all(np.abs(stepper.u) < BLOW_UP):
-                hint = _stability_message(problem, t, u, name) if explicit else ""
-                raise SimulationError(
-                    f"solver '{name}' blew up (a state beyond {BLOW_UP:g} or NaN) at t={stepper.t:.6g} in model "
-                    f"'{c.model.name}'.{hint or ' Try a tighter rtol or a stiff solver (ida, scipy:Radau).'}")
+            diverged = growth.check(stepper.t, stepper.u)
+            if diverged is not None:
+                raise _divergence_error(problem, stepper, name, diverged, growth, explicit, t, u)
             t_hit = None
             if watch is not None:
                 which = watch.crossed(watch.values(stepper.t, stepper.u, modes))

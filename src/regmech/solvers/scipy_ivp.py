@@ -2,7 +2,8 @@
 ``scipy:Radau``, ``scipy:BDF``, ``scipy:LSODA``.
 
 Options: ``rtol`` (default 1e-6), ``atol`` (default ``rtol * 1e-2``, as for
-IDA), ``first_step``, ``max_step`` [s]. The implicit methods get the
+IDA), ``first_step``, ``max_step`` [s], ``max_growth`` (divergence test, see
+``regmech.solvers.divergence``). The implicit methods get the
 structure: Radau and BDF the sparsity pattern of ``dg/du``
 (``jac_sparsity``, so scipy builds a sparse finite-difference Jacobian with
 grouped columns and factorises it sparsely); LSODA, which takes no pattern,
@@ -23,6 +24,7 @@ from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from ..errors import ParameterError, SimulationError
 from . import register
+from .divergence import MAX_GROWTH, check_max_growth
 from .ode_driver import Stepper, ode_jacobian_pattern, simulate_ode
 
 METHODS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
@@ -76,10 +78,12 @@ def _scipy_solver(method):
 
     @register(name)
     def simulate_scipy(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, first_step=None,
-                       max_step=None, max_events=100000, chatter_window=None, chatter_count=50, **unused):
+                       max_step=None, max_events=100000, chatter_window=None, chatter_count=50,
+                       max_growth=MAX_GROWTH, **unused):
         if unused:
             raise ParameterError(f"solver '{name}' takes rtol, atol, first_step, max_step, max_events, "
-                                 f"chatter_window, chatter_count; got unknown {sorted(unused)}")
+                                 f"chatter_window, chatter_count, max_growth; got unknown {sorted(unused)}")
+        max_growth = check_max_growth(name, max_growth)
         if not (isinstance(rtol, (int, float)) and rtol > 0):
             raise ParameterError(f"solver '{name}': rtol must be a positive number, got {rtol!r}")
         options = {"rtol": rtol, "atol": rtol * 1e-2 if atol is None else atol}
@@ -97,7 +101,7 @@ def _scipy_solver(method):
             return stepper
 
         return simulate_ode(model, name, make, t_start, t_end, dt_out, max_events=max_events,
-                            chatter_window=chatter_window, chatter_count=chatter_count)
+                            chatter_window=chatter_window, chatter_count=chatter_count, max_growth=max_growth)
 
     simulate_scipy.__doc__ = f"scipy.integrate.{method} on the ODE form (see regmech.solvers.scipy_ivp)."
     simulate_scipy.__name__ = f"simulate_scipy_{method}"
