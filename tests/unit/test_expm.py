@@ -342,13 +342,13 @@ def _driven_chain(source):
                                     lambda: Speed("drive", w_ref=Poly(0.3, 0.4))])
 def test_kinematic_excitation(source):
     m = _driven_chain(source())
-    res = m.simulate(2.0, dt_out=0.02, solver="expm", order_p=3)
-    ref = m.simulate(2.0, dt_out=0.02, solver="scipy:DOP853", rtol=1e-12, atol=1e-13)
+    res = m.simulate(1.0, dt_out=0.02, solver="expm", order_p=3)
+    ref = m.simulate(1.0, dt_out=0.02, solver="scipy:DOP853", rtol=1e-11, atol=1e-13)
     names = ["J1.phi", "J2.phi", "J1.w", "J2.w", "J0.phi", "J0.w", "k0.tau", "drive.tau"]
     for nm in names:
         assert np.max(np.abs(res[nm] - ref[nm])) <= 1e-8 * np.max(np.abs(ref[nm])), nm
     # any step: the polynomial excitation is integrated exactly, one step per 0.5 s gives the same values
-    coarse = m.simulate(2.0, dt_out=0.5, solver="expm", order_p=3)
+    coarse = m.simulate(1.0, dt_out=0.5, solver="expm", order_p=3)
     k = np.searchsorted(res.t, coarse.t)
     assert np.max(np.abs(coarse["J2.w"] - res["J2.w"][k])) <= 1e-12 * np.max(np.abs(res["J2.w"]))
 
@@ -356,11 +356,10 @@ def test_kinematic_excitation(source):
 def test_rigid_gear_and_msl_first_against_dop853():
     from regmech.library import first
     m = first()
-    res = m.simulate(1.0, dt_out=1e-3, solver="expm", order_p=3)
-    ref = m.simulate(1.0, dt_out=1e-3, solver="scipy:DOP853", rtol=1e-12, atol=1e-13)
-    for nm in ("inertia1.w", "inertia2.w", "inertia3.w", "spring.tau"):
-        if nm in ref:
-            assert np.max(np.abs(res[nm] - ref[nm])) <= 1e-8 * np.max(np.abs(ref[nm])), nm
+    res = m.simulate(0.3, dt_out=2e-3, solver="expm", order_p=3, h=5e-4)
+    ref = m.simulate(0.3, dt_out=2e-3, solver="scipy:DOP853", rtol=1e-11, atol=1e-13)
+    for nm in ("inertia1.w", "inertia2.w", "inertia3.w", "spring.tau", "idealGear.tau"):
+        assert np.max(np.abs(res[nm] - ref[nm])) <= 1e-8 * np.max(np.abs(ref[nm])), nm
 
 
 def test_result_interface_and_stats():
