@@ -252,15 +252,21 @@ class Pulse(Signal):
         if self.period <= 0:
             raise ParameterError(f"Pulse: parameter 'period' must be > 0, got {period!r}")
 
+    def _pulse_start(self, k):
+        return self.start_time + k * self.period
+
     def value(self, t, left=False):
         if t < self.start_time or (left and t == self.start_time):
             return self.offset
-        phase = (t - self.start_time) % self.period
+        # the same arithmetic as breakpoints(), so the jump sits exactly at a listed instant
+        # (a modulo would put it one ulp beside it, inside the next integration segment)
         on_time = self.width / 100.0 * self.period
-        if left and phase == 0.0:
-            phase = self.period          # the limit from the left of a period start
-        on = phase <= on_time if left else phase < on_time
-        return self.offset + (self.amplitude if on else 0.0)
+        k = int(math.floor((t - self.start_time) / self.period))
+        for kk in (k - 1, k, k + 1):
+            t0 = self._pulse_start(kk)
+            if kk >= 0 and ((t0 < t <= t0 + on_time) if left else (t0 <= t < t0 + on_time)):
+                return self.offset + self.amplitude
+        return self.offset
 
     def derivative(self, t, order=1, left=False):
         return 0.0
@@ -272,7 +278,7 @@ class Pulse(Signal):
         k = max(0, int(math.floor((t_start - self.start_time) / self.period)))
         on_time = self.width / 100.0 * self.period
         while True:
-            t0 = self.start_time + k * self.period
+            t0 = self._pulse_start(k)
             if t0 > t_end:
                 break
             pts += [t0, t0 + on_time]

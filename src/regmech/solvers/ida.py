@@ -69,7 +69,7 @@ def choose_linsolver(c, dense_max=60, band_max=40):
     return "sparse", _Ordering(c.N)
 
 
-def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order):
+def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order, max_steps=50000):
     import sksundae
 
     if order.perm is None:
@@ -85,7 +85,7 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
 
     alg = c.algebraic if order.perm is None else np.sort(order.inv[c.algebraic])
     atol = order.to_solver(atol) if np.ndim(atol) else atol
-    opts = dict(rtol=rtol, atol=atol, algebraic_idx=alg, max_num_steps=200000,
+    opts = dict(rtol=rtol, atol=atol, algebraic_idx=alg, max_num_steps=int(max_steps),
                 max_order=max_order, calc_initcond=None)
     if max_step:
         opts["max_step"] = max_step
@@ -138,7 +138,7 @@ def _blame(c, y, yp):
 
 @register("ida")
 def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
-                 max_step=None, max_order=5, dense_max=60, max_events=100000, chatter_window=None,
+                 max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, chatter_window=None,
                  chatter_count=50, progress=False):
     """IDA with analytic sparse Jacobian and event handling (see module docstring)."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
@@ -171,7 +171,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     t_stop = next(bp_iter)
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     k_max = float(np.abs(c.stiffness_estimate()).max(initial=0.0)) if c.Sc.shape[0] else 0.0
-    opts = (rtol, atol, linsolver, max_step, max_order, k_max, order)
+    opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps)
     while t < t_end:
         c._t_right = t_stop
         if t_stop - t <= 1e-13 * max(1.0, abs(t)):
@@ -260,9 +260,9 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
     events function and accumulates across ``solve`` calls.
     """
     with_events = bool(c.friction) and c.friction.n_events > 0
-    rtol, atol, linsolver, max_step, max_order, k_max, order = opts
+    rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps = opts
     atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max)
-    solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order)
+    solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order, max_steps)
     tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end
     inner = grid[(grid > t + tol) & (grid < t_stop - tol)]
     tspan = np.concatenate([[t], inner, [t_stop]])
@@ -284,10 +284,15 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
         last_y = sol.y[-1] if len(sol.y) else y
         last_yp = sol.yp[-1] if len(sol.yp) else yp
         t_fail = sol.t[-1] if len(sol.t) else t
+        hint = ("Try a tighter rtol, check parameters (very stiff links or tiny masses) or use rm.Scene to "
+                "reduce the model")
+        if sol.status == -1:    # too many steps in one output interval
+            hint = (f"More than max_steps={opts[-1]} steps in one output interval: a discontinuity that is not "
+                    f"declared (a callable signal that jumps: use Step/Table/Pulse, or Function(f, breakpoints=...)), "
+                    f"a very stiff or chattering part, or simply a long interval (raise max_steps or lower dt_out)")
         raise SimulationError(
             f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}; components most involved: "
-            f"{_blame(c, last_y, last_yp)}. Try a tighter rtol, check parameters (very stiff links or tiny "
-            f"masses) or use rm.Scene to reduce the model")
+            f"{_blame(c, last_y, last_yp)}. {hint}")
     n_rows = len(sol.t)
     for k in range(1, n_rows):
         if sol.status == 2 and k == n_rows - 1:
