@@ -441,14 +441,32 @@ class CompiledSystem:
                     k[g.row_index[:, oi]] = w[woff + q * g.n: woff + (q + 1) * g.n]
         return k
 
+    def link_frequencies(self) -> np.ndarray:
+        """Local frequency estimate [rad/s] of every compliant row: ``sqrt(k * sum_j S_rj^2 / m_j)``."""
+        k = self.stiffness_estimate()
+        inv_m = np.where(self.mass > 0, 1.0 / np.where(self.mass > 0, self.mass, 1.0), 0.0)
+        S2 = self.Sc.multiply(self.Sc)
+        return np.sqrt(np.abs(k) * (S2 @ inv_m))
+
+    def stiffness_hint(self, ratio: float = 1e3) -> str:
+        """Names the stiffest link when the link spectrum is stretched (for error messages)."""
+        if self.Sc.shape[0] < 2:
+            return ""
+        w = self.link_frequencies()
+        pos = w[w > 0]
+        if pos.size < 2 or pos.max() / pos.min() < ratio:
+            return ""
+        i = int(np.argmax(w))
+        dev = self.structure.compliant[i].device
+        return (f" The stiffest link, {type(dev).__name__} '{dev.name}' (local mode {w[i] / 2 / np.pi:.3g} Hz, "
+                f"{pos.max() / pos.min():.3g} times the softest), is the likely cause: make it rigid "
+                f"(Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it.")
+
     def warn_spectrum(self, ratio: float = 1e3):
         """Position 2: warn when link frequencies or masses spread over many decades."""
         if self.Sc.shape[0] == 0:
             return None
-        k = self.stiffness_estimate()
-        inv_m = np.where(self.mass > 0, 1.0 / np.where(self.mass > 0, self.mass, 1.0), 0.0)
-        S2 = self.Sc.multiply(self.Sc)
-        w2 = np.abs(k) * (S2 @ inv_m)
+        w2 = self.link_frequencies() ** 2
         w2 = w2[w2 > 0]
         msg = []
         if w2.size >= 2 and np.sqrt(w2.max() / w2.min()) > ratio:

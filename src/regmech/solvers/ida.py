@@ -138,7 +138,8 @@ def _blame(c, y, yp):
 
 @register("ida")
 def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
-                 max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, chatter_window=None,
+                 max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, stiff_check=True,
+                 chatter_window=None,
                  chatter_count=50, progress=False):
     """IDA with analytic sparse Jacobian and event handling (see module docstring)."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
@@ -171,6 +172,17 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     t_stop = next(bp_iter)
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     k_max = float(np.abs(c.stiffness_estimate()).max(initial=0.0)) if c.Sc.shape[0] else 0.0
+    if stiff_check and c.Sc.shape[0] >= 2:
+        # a link so much stiffer than the rest that its force's round-off (eps * spread) exceeds
+        # the tolerance: Newton and the error test then fail over and over and IDA crawls
+        w = c.link_frequencies()
+        w = w[w > 0]
+        spread = (w.max() / w.min()) ** 2 if w.size >= 2 else 1.0
+        if np.finfo(float).eps * spread > 100 * rtol:
+            raise SimulationError(
+                f"model '{model.name}': the link stiffnesses spread over {spread:.3g} (frequency ratio "
+                f"{np.sqrt(spread):.3g}), so the stiffest link's force carries round-off larger than rtol={rtol:g} "
+                f"allows; IDA would crawl.{c.stiffness_hint()} (stiff_check=False runs it anyway.)")
     opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps)
     while t < t_end:
         c._t_right = t_stop
@@ -290,9 +302,10 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
             hint = (f"More than max_steps={opts[-1]} steps in one output interval: a discontinuity that is not "
                     f"declared (a callable signal that jumps: use Step/Table/Pulse, or Function(f, breakpoints=...)), "
                     f"a very stiff or chattering part, or simply a long interval (raise max_steps or lower dt_out)")
+        hint = hint.rstrip(".")
         raise SimulationError(
             f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}; components most involved: "
-            f"{_blame(c, last_y, last_yp)}. {hint}")
+            f"{_blame(c, last_y, last_yp)}. {hint}.{c.stiffness_hint()}")
     n_rows = len(sol.t)
     for k in range(1, n_rows):
         if sol.status == 2 and k == n_rows - 1:
