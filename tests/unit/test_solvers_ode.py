@@ -211,6 +211,18 @@ def test_divergence_beyond_the_stability_limit_is_an_error(stiff_chain, solver, 
     assert max_error(res, ref, CHAIN_SIGNALS, relative=True) > 1e6
 
 
+def test_a_run_too_short_for_the_growth_tests_is_judged_before_it_starts(stiff_chain):
+    m, _ = stiff_chain
+    # 10 steps of h rho = 28: rk4 amplifies the top mode by ~1.4e4 per step
+    with pytest.raises(SimulationError, match=r"would diverge from t=0 s \(step h=0.05 s\).*over the 10 steps"):
+        m.simulate(0.5, 0.05, solver="rk4", h=0.05)
+    # 10 steps inside the stability region (h rho = 1.5 on the softer chain) are not refused
+    soft = chain(3)
+    res = soft.simulate(0.25, 0.025, solver="rk4", h=0.025)
+    ref = soft.simulate(0.25, 0.025, solver="ida", rtol=1e-10, atol=1e-12)
+    assert max_error(res, ref, CHAIN_SIGNALS, relative=True) < 0.2
+
+
 def free_body(tau, J=1e-3, w0=1e-9):
     m = rm.Model("free_body")
     fixed = m.add(Fixed("fixed"))

@@ -166,6 +166,23 @@ def corrector(u, g, u_new, g_new, h, rate, phis=None):
     return u + h * p1 * g + h * p2 * ((g_new - g) + rate * (u_new - u))
 
 
+def step_matrix(J, h, corrector_kind):
+    """One step of the method on ``u' = J u`` as a matrix, time constants from diag(J).
+
+    With ``B = h phi1 J`` and ``C = h phi2 (J + diag(r))``: the implicit corrector is
+    ``u_{i+1} = (I + (I - C)^-1 B) u_i``; the single pass (PECE, equal steps) acts on ``(u_i, u_{i-1})`` by
+    the companion matrix ``[[I + B + C B + C^2, -C^2], [I, 0]]``."""
+    n = J.shape[0]
+    eye = np.eye(n)
+    rate = lag_rates(np.diag(J))
+    p1, p2 = phi_functions(h * rate)
+    B = h * p1[:, None] * J
+    C = h * p2[:, None] * (J + np.diag(rate))
+    if corrector_kind == "implicit":
+        return eye + np.linalg.solve(eye - C, B)
+    return np.block([[eye + B + C @ B + C @ C, -C @ C], [eye, np.zeros((n, n))]])
+
+
 class NewtonMatrix:
     """LU of ``M = I - h diag(p2) (J + diag(r))``, the Newton matrix of the implicit corrector.
 
@@ -216,7 +233,7 @@ class ConvolutionStepper(Stepper):
         self.implicit = corrector == "implicit"
         # Newton converged when the estimated remaining correction is below this (weighted RMS norm)
         self.newton_tol = max(10 * EPS / rtol, min(0.03, rtol ** 0.5))
-        self.fixed_h = h
+        self.fixed_h = self.fixed_step = h
         self.max_step = np.inf if max_step is None else float(max_step)
         self.jac_every = jac_every
         self.nsteps = self.nrejected = self.njev = 0
@@ -430,6 +447,12 @@ class ConvolutionStepper(Stepper):
 
     def stats(self):
         return {"forced": self.forced, **self.counts}
+
+    def amplification(self, J, h):
+        if not J.size:
+            return None
+        M = step_matrix(J, h, "implicit" if self.implicit else "pece")
+        return float(np.max(np.abs(np.linalg.eigvals(M))))
 
     def divergence_remedy(self):
         if not self.implicit:

@@ -44,9 +44,9 @@ The run is declared diverged at the end of a step at time ``t`` when
 * ``max_growth`` (default ``MAX_GROWTH = 1e4``): polynomial growth of degree
   up to 8 stays below it (``3^8 = 6561``, ``2.5^8 = 1526``); measured on the
   library scenes with the adaptive ODE-form solvers at default settings and
-  with rk4 at stable steps: at most 2.5 (benchmarks/results/solvers_ode.md); a
-  physically unstable model
-  (negative damping) would have to grow by ``e^{sigma (t - t_a)/2} > 1e4``.
+  with rk4 at h = t_end/4000: at most 12.3 (benchmarks/results/solvers_ode.md);
+  a physically unstable model (negative damping) would have to grow by
+  ``e^{sigma (t - t_a)/2} > 1e4``.
 
 A second, more sensitive test catches a slow blow-up (a few per cent per
 step) before it has grown by ``max_growth``: the signature of a numerical
@@ -60,19 +60,27 @@ steps ``h_k = t_k - t_{k-1}``)
 the run is declared diverged when over the last ``ROUGH_STEPS = 10`` steps
 every ``r_k > ROUGH = 0.5`` and ``N`` grew by more than ``ROUGH_GROWTH = 4``.
 Measured: legitimate runs (library scenes with convolution, RK45, Radau,
-BDF at default settings; the excavator with rk4 and the convolution method
-at stable steps) never keep ``r_k`` above 0.14 for 10 steps in a row;
-diverging ones keep it above 1. Both conditions are needed: a stable
-implicit method rings on a stiff mode (``r_k`` near 4, the trapezoidal
-factor -1 per step) without growing, and a forced response grows while
-smooth.
+BDF at default settings and rk4 at h = t_end/4000; the excavator with rk4
+and the convolution method at every stable step) never keep ``r_k`` above
+0.14 for 10 steps in a row; diverging ones keep it above 1. Both
+conditions are needed: a stable implicit method rings on a stiff mode
+(``r_k`` near 4, the trapezoidal factor -1 per step) without growing, and a
+forced response grows while smooth.
 
 In addition any state that is non-finite or beyond ``BLOW_UP`` (1e100)
 stops the run at once.
 
-What it cannot do: a run of fewer than about 10 steps after the state left
-zero is judged only by the non-finite / 1e100 test (there is no history to
-compare with); a numerical instability that stays bounded (the nonlinearity
+A run too short for these tests (a fixed step h with fewer than
+``FEW_STEPS = 20`` steps left at a segment start) is judged before it goes
+on: with J the ODE Jacobian there and q the spectral radius of one step of
+the method on ``u' = J u`` (rk4: ``max |R(h lambda)|``, the convolution
+method's single pass: its two-step companion matrix), the run stops when
+``q^n > max_growth`` over the n steps left. This can refuse a run that would
+have come out right: an unstable mode that neither the start nor the forcing
+excites grows from round-off only (1e-16 times q^n); in the drivetrain models
+here every mode is excited.
+
+What it cannot do: a numerical instability that stays bounded (the nonlinearity
 of friction or backlash caps it) or grows by less than ``max_growth`` over
 the run while changing by less than half its size per step is not detected.
 Its error is then of the order of the solution, not astronomic; the accuracy
@@ -102,6 +110,10 @@ BLOW_UP = 1e100
 ROUGH_STEPS = 10
 ROUGH = 0.5
 ROUGH_GROWTH = 4.0
+#: a fixed-step run with fewer steps than this left is judged a priori (no history for the tests above)
+FEW_STEPS = 2 * ROUGH_STEPS
+#: ... when its ODE state is at most this large (a dense eigenvalue problem per segment)
+FEW_STEPS_MAX_SIZE = 600
 #: where the forcing of a segment is sampled (fractions of its length: ends and 3-point Gauss nodes)
 _SAMPLES = (0.0, 0.5 - 0.5 * 0.6 ** 0.5, 0.5, 0.5 + 0.5 * 0.6 ** 0.5, 1.0)
 

@@ -52,6 +52,7 @@ class FixedStepper(Stepper):
         self.g = problem.rhs(self.t, self.u)
         self.u_old, self.g_old = self.u, self.g
         self.clock = KnotClock(t0, knots, t_bound, h)
+        self.fixed_step = float(h)
         self.nsteps = 0
         self.nrejected = 0
         self.njev = 0
@@ -72,9 +73,21 @@ class FixedStepper(Stepper):
         """One step from (t, u) with slope g = g(t, u); returns (u_new, g(t + h, u_new))."""
         raise NotImplementedError
 
+    @staticmethod
+    def stability_function(z):
+        """Factor of one step on ``y' = lambda y``, ``z = h lambda`` (the classical RK4 polynomial)."""
+        return 1 + z * (1 + z * (0.5 + z * (1.0 / 6.0 + z / 24.0)))
+
+    def amplification(self, J, h):
+        return float(np.max(np.abs(self.stability_function(h * np.linalg.eigvals(J))))) if J.size else None
+
 
 class EulerStepper(FixedStepper):
     stability_bound = 2.0
+
+    @staticmethod
+    def stability_function(z):
+        return 1 + z
 
     def advance(self, t, u, g, h):
         u1 = u + h * g
@@ -100,6 +113,8 @@ class ABMStepper(FixedStepper):
     """Adams-Bashforth-Moulton 4 (PECE); the history holds g_n, g_{n-1}, g_{n-2}, g_{n-3} at spacing h."""
 
     stability_bound = 1.3      # measured: y' = lambda y stays bounded for h lambda in [-1.3, 0)
+    # amplification: the RK4 factor of the start-up steps (a short run is mostly those; ABM's own region is
+    # smaller, so this errs on the side of letting a short run go)
 
     def __init__(self, *args, **kw):
         super().__init__(*args, **kw)

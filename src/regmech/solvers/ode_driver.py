@@ -36,7 +36,8 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import SimulationError
 from ..result import Event, Result, Stats
 from .common import Recorder, check_times, output_grid, signal_breakpoints
-from .divergence import BLOW_UP, MAX_GROWTH, ROUGH, ROUGH_STEPS, GrowthWatch  # noqa: F401 (BLOW_UP re-exported)
+from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROUGH,  # noqa: F401 (BLOW_UP
+                         ROUGH_STEPS, GrowthWatch)                                 # is re-exported)
 
 EPS = np.finfo(float).eps
 
@@ -276,6 +277,7 @@ class Stepper:
     t: float
     t_old: float
     u: np.ndarray
+    fixed_step: float | None = None     # the requested step of a fixed-step method
     nsteps: int = 0
     nrejected: int = 0
     njev: int = 0
@@ -292,6 +294,12 @@ class Stepper:
     #: ``h * rho`` (step times spectral radius of dg/du) up to which an explicit method is stable on the
     #: negative real axis; None for methods without such a bound. Used to explain a divergence.
     stability_bound: float | None = None
+
+    def amplification(self, J, h) -> float | None:
+        """Spectral radius of one step of length h on ``u' = J u`` (J dense), None when not known.
+
+        Used only for runs too short for the divergence tests of ``divergence.GrowthWatch``."""
+        return None
 
     def divergence_remedy(self) -> str:
         """What the user can do when this stepper's run diverged (appended to the error message)."""
@@ -447,6 +455,28 @@ def _divergence_error(problem, stepper, name, why, growth, explicit, t_seg, u_se
         f"the integration is numerically unstable (see regmech.solvers.divergence).{remedy}")
 
 
+def _few_steps_check(problem, stepper, name, t, u, t_end, growth, explicit):
+    """A run of fixed steps too short for the growth tests (fewer than ``FEW_STEPS`` steps to go): refuse it
+    when one step amplifies the linearisation at (t, u) by q with ``q^n > max_growth`` over the n steps left."""
+    h = stepper.fixed_step
+    if h is None or growth.max_growth is None or problem.size > FEW_STEPS_MAX_SIZE:
+        return
+    n_left = math.ceil((t_end - t) / h * (1 - 1e-12))
+    if n_left >= FEW_STEPS:
+        return
+    J = problem.jacobian(t, u).toarray()
+    with np.errstate(all="ignore"):
+        q = stepper.amplification(J, h)
+    if q is None or not q > 1 or n_left * math.log(q) <= math.log(growth.max_growth):
+        return
+    remedy = _stability_message(problem, t, u, stepper) if explicit else stepper.divergence_remedy()
+    raise SimulationError(
+        f"solver '{name}' would diverge from t={t:.6g} s (step h={h:.3g} s) in model '{problem.c.model.name}': "
+        f"one step amplifies the linearised motion by up to {q:.3g}, i.e. {q:.3g}^{n_left} over the {n_left} "
+        f"steps left, beyond max_growth = {growth.max_growth:g}; a run this short has no history for the growth "
+        f"tests, so it is judged before it starts (see regmech.solvers.divergence).{remedy}")
+
+
 def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None, *, max_events=100000,
                  chatter_window=None, chatter_count=50, explicit=False, max_growth=MAX_GROWTH):
     """Run ``model`` with the stepper factory of an ODE-form solver; returns a ``Result``.
@@ -493,7 +523,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         knots = np.append(inner, t_stop)
         if t < t_stop:
             end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec, stats, extra, name,
-                               explicit)
+                               explicit, t_end)
             stats.segments += 1
         else:
             end = SegmentEnd(t_stop, u)     # an event landed on the breakpoint: nothing left of this segment
@@ -543,11 +573,13 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
 
 
-def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec, stats, extra, name, explicit):
+def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec, stats, extra, name, explicit,
+                 t_end):
     """Integrate one segment; record the grid points inside it; stop at a crossing or at ``t_stop``."""
     c, modes = problem.c, problem.modes
     growth.segment_start(problem.rhs, t, t_stop, len(u))
     stepper = make_stepper(problem, t, u, t_stop, knots)
+    _few_steps_check(problem, stepper, name, t, u, t_end, growth, explicit)
     if watch is not None:
         watch.arm(watch.values(t, u, modes))
     inner = knots[:-1]
