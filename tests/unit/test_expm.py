@@ -413,6 +413,19 @@ def test_coupled_clutches_events_and_speeds_against_ida():
         assert np.max(np.abs(np.interp(ref.t, res.t, res[nm]) - ref[nm])) <= 1e-6, nm
 
 
+def test_one_way_clutch_against_dymola_including_the_grazing_lock(reference_dir):
+    # at t = 1.5 the relative speed touches zero tangentially; Dymola's reference locks there and
+    # releases at 1.50000159 s (duplicated time rows); on the exact flow expm finds the same touch
+    from regmech.library import one_way_clutch
+    ref = np.genfromtxt(reference_dir / "OneWayClutch.csv", delimiter=",", names=True)
+    res = one_way_clutch(True).simulate(2.0, dt_out=1e-3, solver="expm", order_p=3)
+    for name, col in (("inertiaIn.w", "inertiaInw"), ("oneWayClutch.w_rel", "oneWayClutchw_rel")):
+        assert np.max(np.abs(np.interp(ref["time"], res.t, res[name]) - ref[col])) < 2e-4, name
+    ref_rows = ref["time"][:-1][np.diff(ref["time"]) == 0]
+    release = [e.t for e in res.events if abs(e.t - 1.5) < 1e-3 and e.new_mode == 2]
+    assert len(release) == 1 and np.min(np.abs(ref_rows - release[0])) < 1e-9
+
+
 # ============================================================ errors
 def test_nonlinear_model_is_refused_with_the_component_named():
     from regmech.library import train
