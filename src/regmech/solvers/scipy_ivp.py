@@ -73,16 +73,36 @@ class ScipyStepper(Stepper):
         return {"lu_decompositions": int(getattr(self.solver, "nlu", 0) or 0) - self._lu0}
 
 
+#: stability interval of the explicit methods on the negative real axis (h * rho up to about this)
+EXPLICIT_STABILITY = {"RK23": 2.5, "RK45": 3.3, "DOP853": 6.0}
+
+
+def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps):
+    """An explicit method needs h <= bound / rho: refuse up front when that takes more than max_steps."""
+    from .ode_driver import _spectral_radius
+    rho = _spectral_radius(problem, t0, u0)
+    if not rho:
+        return
+    needed = (t_end - t0) * rho / EXPLICIT_STABILITY[method]
+    if needed > max_steps:
+        raise SimulationError(
+            f"solver '{name}' on model '{problem.c.model.name}': the Jacobian's spectral radius {rho:.3g} 1/s limits "
+            f"this explicit method to steps below {EXPLICIT_STABILITY[method] / rho:.3g} s, about {needed:.3g} steps "
+            f"for the run, more than max_steps={max_steps}: the model is stiff for an explicit method. Use 'ida', "
+            f"'scipy:Radau', 'scipy:BDF' or 'convolution', or raise max_steps.{problem.c.stiffness_hint()}")
+
+
 def _scipy_solver(method):
     name = f"scipy:{method}"
 
     @register(name)
     def simulate_scipy(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, first_step=None,
                        max_step=None, max_events=100000, chatter_window=None, chatter_count=50,
-                       max_growth=MAX_GROWTH, **unused):
+                       max_growth=MAX_GROWTH, max_steps=200_000, **unused):
         if unused:
             raise ParameterError(f"solver '{name}' takes rtol, atol, first_step, max_step, max_events, "
-                                 f"chatter_window, chatter_count, max_growth; got unknown {sorted(unused)}")
+                                 f"chatter_window, chatter_count, max_growth, max_steps; got unknown "
+                                 f"{sorted(unused)}")
         max_growth = check_max_growth(name, max_growth)
         if not (isinstance(rtol, (int, float)) and rtol > 0):
             raise ParameterError(f"solver '{name}': rtol must be a positive number, got {rtol!r}")
@@ -92,7 +112,12 @@ def _scipy_solver(method):
         if max_step is not None:
             options["max_step"] = max_step
 
+        checked = []
+
         def make(problem, t0, u0, t_bound, knots):
+            if method in EXPLICIT_STABILITY and not checked:
+                checked.append(True)
+                _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps)
             step_opts = dict(options)
             if "first_step" in step_opts:
                 step_opts["first_step"] = min(step_opts["first_step"], t_bound - t0)
