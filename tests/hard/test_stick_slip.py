@@ -22,9 +22,6 @@ def test_stick_slip_is_solved_within_tolerance(key, solver):
 
 
 @pytest.mark.parametrize("solver", ["scipy:RK45", "rk4", "expm"])
-@pytest.mark.xfail(strict=True, reason="ODE-form driver: when several clutches reach zero slip at one instant, "
-                   "only the first located one locks; a device whose w_rel has crossed zero by round-off at the "
-                   "restart is disarmed (its event function is not positive) and keeps slipping with w_rel of "
-                   "the wrong sign, friction driving the slip (speeds 4 rad/s off); IDA locks all three")
+# (was xfail: a device already past zero slip by round-off at an event now locks with the others)
 def test_simultaneous_locking_in_the_ode_form_solvers(solver):
     assert_passes(outcome("simultaneous_lock", solver))

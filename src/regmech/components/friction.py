@@ -575,9 +575,11 @@ class FrictionSet:
             elif initial or old[j] == FREE:
                 new[j] = FORWARD if w[j] > 0 else BACKWARD if w[j] < 0 else STUCK
             elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
-                                                     (abs(w[j]) <= scale and w[j] * arel[j] < 0)):
-                # found by the root finder, or within round-off of zero and still approaching it
-                # (a device that has just broken away has w_rel ~ 0 too, but is leaving)
+                                                     (abs(w[j]) <= scale and
+                                                      (w[j] * arel[j] < 0 or old[j] * w[j] <= 0))):
+                # found by the root finder, or within round-off of zero and still approaching it, or
+                # already past it by round-off (several devices reaching zero slip at one instant;
+                # a device that has just broken away has w_rel ~ 0 too, but on its own side, leaving)
                 new[j] = STUCK
             elif old[j] == STUCK and crossed[2 * j] != 0:
                 # the root of tau0_max - |lam| was located (to round-off) on either side of zero:
