@@ -526,6 +526,9 @@ class FrictionSet:
             self._ev_key = key
         stuck, st_ow, st_2w, fr_ow, fr_2w, slide, sign = self._ev_masks
         first = sign * w
+        # a device sliding at exactly zero speed (held by another one, see _share_redundant): a tiny
+        # positive value keeps IDA from deactivating a root function identically zero at the start
+        first[slide & (first == 0.0)] = 1e-300
         first[st_ow] = caps[st_ow, 1] - lam[st_ow]
         first[st_2w] = caps[st_2w, 1] - np.abs(lam[st_2w])
         first[fr_ow] = w[fr_ow]
@@ -576,7 +579,7 @@ class FrictionSet:
                 new[j] = FORWARD if w[j] > 0 else BACKWARD if w[j] < 0 else STUCK
             elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
                                                      (abs(w[j]) <= scale and
-                                                      (w[j] * arel[j] < 0 or old[j] * w[j] <= 0))):
+                                                      (w[j] * arel[j] < 0 or old[j] * w[j] < 0))):
                 # found by the root finder, or within round-off of zero and still approaching it, or
                 # already past it by round-off (several devices reaching zero slip at one instant;
                 # a device that has just broken away has w_rel ~ 0 too, but on its own side, leaving)
