@@ -317,9 +317,9 @@ def rigidify(model, outputs, band_hz, factor=10.0):
                                   + note))
         elif f_hz >= band_hz:
             actions.append(Action("rigidify", [comp.name],
-                                  f"stiff link (local mode {f_hz:.4g} Hz, {f_hz / median_f:.3g} x the median link) but "
-                                  f"its mode lies inside {factor:g} x the band of {band_hz:g} Hz: making it rigid "
-                                  f"would change the answer in the band", False))
+                                  f"its local mode {f_hz:.4g} Hz ({f_hz / median_f:.3g} x the median link) lies "
+                                  f"inside {factor:g} x the band of {band_hz:g} Hz: making it rigid would change "
+                                  f"the answer in the band", False))
     if not ed.replaced:
         return model, actions
     return ed.build(), actions
