@@ -142,7 +142,7 @@ def test_run_records_errors_times_and_msl_comparison(tmp_path, reference_dir, mo
     assert [r.status for r in recs] == ["ok", "ok"]
     loose, tight = recs
     assert tight.err_max_rel < loose.err_max_rel < 1e-2
-    assert tight.runs == 2 and tight.wall_s > 0 and tight.compile_s > 0 and tight.rhs_calls > 0
+    assert tight.runs == 5 and tight.wall_s > 0 and tight.compile_s > 0 and tight.rhs_calls > 0   # cheap: 5 runs
     assert np.isfinite(tight.msl_max_rel) and tight.msl_max_rel < 2e-3   # the MSL tube
 
 

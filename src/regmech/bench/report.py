@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 
 from .metrics import Errors
-from .runner import REPEAT_ABOVE_S
+from .runner import CHEAP_BELOW_S, CHEAP_REPEATS, REPEAT_ABOVE_S
 
 #: error levels of the matched-accuracy tables
 LEVELS = (1e-2, 1e-4, 1e-6, 1e-8)
@@ -264,8 +264,10 @@ def write_report(run, out: Path) -> Path:
     write_csv(run.records, out / "work_precision.csv")
     lines = ["# Work-precision of regmech's solvers", "",
              f"Machine: {machine_line(run.machine)}.", "",
-             f"Command: `{run.command}`; {run.repeats} runs per setting (median; runs over "
-             f"{_fmt_time(REPEAT_ABOVE_S)} once), time limit {run.limit:g} s per run, total {run.wall_total / 60:.1f} min.", "",
+             f"Command: `{run.command}`; {run.repeats} runs per setting, median (runs under "
+             f"{_fmt_time(CHEAP_BELOW_S)} {CHEAP_REPEATS} times, runs over {_fmt_time(REPEAT_ABOVE_S)} once), "
+             f"time limit {run.limit:g} s per run, total {run.wall_total / 60:.1f} min. The machine is shared with "
+             f"other work: times of a few ms vary by a factor up to 2 between runs; compare ratios within a table.", "",
              "Errors: max over the output grid and the compared signals of |run - reference| / range of the "
              "reference signal (`max rel err`); the same at t_end (`final err`); for stick/slip scenes the "
              "largest switch-time difference of the mode changes matched by device, old and new mode "
