@@ -395,6 +395,15 @@ class FrictionSet:
         self._one_way = np.array([d.one_way for d in self.devices], bool)
         self._ev_key, self._ev_masks = None, None
         self._coupled_rows = [j for j, d in enumerate(self.devices) if d.coupled]
+        self._small = None
+        if self.mf <= 8 and not self._coupled_rows:
+            Gc = self.G.tocsr()
+            c = compiled
+            self._small = [([int(c.iv[k]) for k in Gc.indices[Gc.indptr[j]:Gc.indptr[j + 1]]],
+                            [float(x) for x in Gc.data[Gc.indptr[j]:Gc.indptr[j + 1]]],
+                            int(c.ilam[self.offset + j]), bool(self._one_way[j]), self._cap_fns[j])
+                           for j in range(self.mf)]
+            self._ev_out = np.empty(self.n_events)
 
     # -- helpers --------------------------------------------------------------
     def _left(self, t):
@@ -486,6 +495,28 @@ class FrictionSet:
                 out[5 * j + 4] = c_cpl
         return out
 
+    def _event_values_small(self, t, left, y, modes):
+        """The same functions in plain Python for a few devices without lossy gears: IDA calls them
+        several times per step, and for three clutches numpy's per-call overhead dominates."""
+        out = self._ev_out
+        for j, (cols, coefs, il, one_way, cap_fn) in enumerate(self._small):
+            m = modes[j]
+            fn, tau0, tau0_max = cap_fn(t, left)
+            if m == STUCK:
+                lam = y[il]
+                out[2 * j] = tau0_max - (lam if one_way else abs(lam))
+            else:
+                w = 0.0
+                for k, cf in zip(cols, coefs):
+                    w += cf * y[k]
+                if m == FREE:
+                    out[2 * j] = w if one_way else 1.0
+                else:
+                    g = m * w
+                    out[2 * j] = g if g != 0.0 else 1e-300
+            out[2 * j + 1] = fn if self.engaged[j] else (-fn if fn != 0.0 else 1e-300)
+        return out
+
     def slopes(self, t, v, modes):
         """d lam / d w_rel of each non-stuck row (the friction characteristic's slope; 0 when stuck)."""
         left = self._left(t)
@@ -510,7 +541,9 @@ class FrictionSet:
         Vectorised over the devices; lossy gears give their own pair.
         """
         c = self.c
-        left = self._left(t)
+        left = t >= c._t_right
+        if self._small is not None:
+            return self._event_values_small(t, left, y, modes)
         w = self.w_rel(y[c.iv])
         lam_all = y[c.ilam]
         lam = lam_all[self.offset:]
