@@ -16,7 +16,8 @@ re-assembled (it is written by hand from the figures).
 
 Options: ``--scenes``, ``--solvers``, ``--repeats`` (3), ``--time-limit`` per
 run [s] (120 for work-precision, 60 for hard cases), ``--cache`` (reference
-cache folder), ``--cases`` (hard-case keys).
+cache folder), ``--cases`` (hard-case keys), ``--merge`` (re-run some scenes and
+keep the other scenes' records of the previous run in the report).
 """
 
 from __future__ import annotations
@@ -48,10 +49,31 @@ def run_wp(args) -> None:
     run = run_work_precision(scenes, solvers, repeats=args.repeats, limit=args.time_limit or 120.0,
                              cache_dir=Path(args.cache) if args.cache else None, command=cmd,
                              log=lambda m: print(m, file=sys.stderr))
+    if args.merge and (WP_DIR / "work_precision.csv").exists():
+        _merge_previous(run, args)
     md = write_report(run, WP_DIR)
     text = md.read_text().replace("](wp_", "](wp/wp_")      # the Markdown lives one folder up
     (RESULTS / "work_precision.md").write_text(text)
     print(f"work-precision: {len(run.records)} runs in {run.wall_total / 60:.1f} min -> {RESULTS / 'work_precision.md'}")
+
+
+def _merge_previous(run, args) -> None:
+    """Keep the previous run's records of the scenes not re-run (their references come from the cache)."""
+    from regmech.bench.reference import ReferenceUnavailable, get_reference
+    from regmech.bench.report import read_csv
+    from regmech.bench.scenes import all_scenes
+    redone = {sc.key for sc in run.scenes}
+    kept = [r for r in read_csv(WP_DIR / "work_precision.csv") if r.scene not in redone]
+    run.records = kept + run.records
+    order = [sc for sc in all_scenes() if sc.key in {r.scene for r in run.records}]
+    for sc in order:
+        if sc.key not in run.references:
+            try:
+                run.references[sc.key] = get_reference(sc, Path(args.cache) if args.cache else None)
+            except ReferenceUnavailable as exc:
+                run.references[sc.key], run.reference_errors[sc.key] = None, str(exc)
+    run.scenes = order
+    run.command += f" (merged with the previous run's records of {sorted({r.scene for r in kept})})"
 
 
 def run_hard(args) -> None:
@@ -128,6 +150,8 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--time-limit", type=float, default=None)
     p.add_argument("--cache", default=None)
+    p.add_argument("--merge", action="store_true",
+                   help="with --wp --scenes: keep the previous records of the other scenes in the report")
     args = p.parse_args(argv)
     if not (args.wp or args.hard or args.assemble or args.all):
         p.error("choose --wp, --hard, --assemble or --all")

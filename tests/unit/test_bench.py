@@ -294,3 +294,17 @@ def test_hard_case_report_lists_every_solver_with_its_verdict():
             HardOutcome(cases[1].key, "ida", CI, "refuse", "SimulationError: 'J1' | too stiff")]
     md = hard_markdown(cases, outs, ["ida", "rk4"], CI, {"cpu": "x"}, 60.0, 12.0)
     assert "| `ida` | pass |" in md and "**FAIL** (t)" in md and "too stiff" in md and "'J1' / too" in md
+
+
+def test_records_round_trip_through_csv(tmp_path):
+    from regmech.bench.report import read_csv, write_csv
+    recs = [RunRecord("s", "ida", "rtol", 1e-6, wall_s=0.125, steps=12, err_max_rel=3e-7, worst_signal="J1.w"),
+            RunRecord("s", "rk4", "h", 1e-3, status="error", reason="SimulationError: 'J1', boom")]
+    write_csv(recs, tmp_path / "r.csv")
+    back = read_csv(tmp_path / "r.csv")
+
+    def same(a, b):
+        return a == b or (isinstance(a, float) and isinstance(b, float) and np.isnan(a) and np.isnan(b))
+    assert len(back) == 2
+    for a, b in zip(back, recs):
+        assert all(same(a.row()[k], b.row()[k]) for k in b.row()), (a, b)

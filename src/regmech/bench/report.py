@@ -86,6 +86,22 @@ def write_csv(records, path: Path) -> None:
             w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
 
 
+def read_csv(path: Path) -> list:
+    """``RunRecord``s back from a CSV written by ``write_csv`` (to merge a partial re-run)."""
+    import dataclasses
+    from .runner import RunRecord
+    kinds = {f.name: f.type for f in dataclasses.fields(RunRecord)}
+    out = []
+    with open(path, newline="") as fh:
+        for row in csv.DictReader(fh):
+            vals = {}
+            for k, v in row.items():
+                kind = kinds.get(k, "str")
+                vals[k] = float(v) if kind == "float" else int(float(v)) if kind == "int" else v
+            out.append(RunRecord(**vals))
+    return out
+
+
 def plot_scene(records, scene, reference, path: Path) -> bool:
     """Error vs median wall time, log-log, one line per solver; False when matplotlib is missing."""
     try:
