@@ -3,6 +3,7 @@
     python benchmarks/run_benchmarks.py --wp        # work-precision of every solver on every scene
     python benchmarks/run_benchmarks.py --hard      # hard cases at full size, every solver
     python benchmarks/run_benchmarks.py --assemble  # BENCHMARKS.md from benchmarks/results/*.md
+    python benchmarks/run_benchmarks.py --rewrite   # the work-precision report again from its CSV
     python benchmarks/run_benchmarks.py --all       # the three in turn
 
 Outputs: ``benchmarks/results/work_precision.md`` (with ``results/wp/``: CSV
@@ -50,11 +51,37 @@ def run_wp(args) -> None:
                              cache_dir=Path(args.cache) if args.cache else None, command=cmd,
                              log=lambda m: print(m, file=sys.stderr))
     if args.merge and (WP_DIR / "work_precision.csv").exists():
+        from regmech.bench.report import write_csv
+        WP_DIR.mkdir(parents=True, exist_ok=True)
+        write_csv(run.records, WP_DIR / "work_precision.partial.csv")   # kept if the merge fails
         _merge_previous(run, args)
     md = write_report(run, WP_DIR)
     text = md.read_text().replace("](wp_", "](wp/wp_")      # the Markdown lives one folder up
     (RESULTS / "work_precision.md").write_text(text)
     print(f"work-precision: {len(run.records)} runs in {run.wall_total / 60:.1f} min -> {RESULTS / 'work_precision.md'}")
+
+
+def rewrite_wp(args) -> None:
+    """The work-precision report again from the stored CSV and metadata (no runs; references from the cache)."""
+    import json
+    from regmech.bench.reference import ReferenceUnavailable, get_reference
+    from regmech.bench.report import read_csv, write_report
+    from regmech.bench.scenes import all_scenes
+    from regmech.bench.workprecision import BenchRun
+    meta = json.loads((WP_DIR / "work_precision.meta.json").read_text())
+    records = read_csv(WP_DIR / "work_precision.csv")
+    keys = {r.scene for r in records}
+    run = BenchRun([sc for sc in all_scenes() if sc.key in keys], meta["solvers"], records, machine=meta["machine"],
+                   repeats=meta["repeats"], limit=meta["limit"], command=meta["command"],
+                   wall_total=meta["wall_total"])
+    for sc in run.scenes:
+        try:
+            run.references[sc.key] = get_reference(sc, Path(args.cache) if args.cache else None)
+        except ReferenceUnavailable as exc:
+            run.references[sc.key], run.reference_errors[sc.key] = None, str(exc)
+    md = write_report(run, WP_DIR)
+    (RESULTS / "work_precision.md").write_text(md.read_text().replace("](wp_", "](wp/wp_"))
+    print(f"rewrote {RESULTS / 'work_precision.md'} from {len(records)} stored runs")
 
 
 def _merge_previous(run, args) -> None:
@@ -74,6 +101,10 @@ def _merge_previous(run, args) -> None:
                 run.references[sc.key], run.reference_errors[sc.key] = None, str(exc)
     run.scenes = order
     run.command += f" (merged with the previous run's records of {sorted({r.scene for r in kept})})"
+    meta_path = WP_DIR / "work_precision.meta.json"
+    if meta_path.exists():
+        import json
+        run.wall_total += json.loads(meta_path.read_text()).get("wall_total", 0.0)
 
 
 def run_hard(args) -> None:
@@ -150,11 +181,15 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--time-limit", type=float, default=None)
     p.add_argument("--cache", default=None)
+    p.add_argument("--rewrite", action="store_true",
+                   help="rewrite the work-precision report from the stored CSV (no runs)")
     p.add_argument("--merge", action="store_true",
                    help="with --wp --scenes: keep the previous records of the other scenes in the report")
     args = p.parse_args(argv)
-    if not (args.wp or args.hard or args.assemble or args.all):
-        p.error("choose --wp, --hard, --assemble or --all")
+    if not (args.wp or args.hard or args.assemble or args.all or args.rewrite):
+        p.error("choose --wp, --hard, --assemble, --rewrite or --all")
+    if args.rewrite:
+        rewrite_wp(args)
     if args.wp or args.all:
         run_wp(args)
     if args.hard or args.all:

@@ -308,3 +308,6 @@ def test_records_round_trip_through_csv(tmp_path):
     assert len(back) == 2
     for a, b in zip(back, recs):
         assert all(same(a.row()[k], b.row()[k]) for k in b.row()), (a, b)
+    text = (tmp_path / "r.csv").read_text().replace(",12,", ",,", 1)      # an unrecorded counter
+    (tmp_path / "r.csv").write_text(text)
+    assert read_csv(tmp_path / "r.csv")[0].steps == 0

@@ -11,6 +11,7 @@ scipy method at that accuracy.
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 
@@ -97,6 +98,8 @@ def read_csv(path: Path) -> list:
             vals = {}
             for k, v in row.items():
                 kind = kinds.get(k, "str")
+                if kind in ("float", "int") and v in ("", "None"):
+                    continue                      # not recorded: the field's default
                 vals[k] = float(v) if kind == "float" else int(float(v)) if kind == "int" else v
             out.append(RunRecord(**vals))
     return out
@@ -112,6 +115,7 @@ def plot_scene(records, scene, reference, path: Path) -> bool:
         return False
     fig, ax = plt.subplots(figsize=(8, 5.5))
     markers = "os^vD<>phX*P"
+    colors = list(plt.cm.tab10.colors) + ["black", "darkgoldenrod"]     # 12 distinct: one per solver
     solvers = list(dict.fromkeys(r.solver for r in records))
     clipped = False
     for i, s in enumerate(solvers):
@@ -125,10 +129,10 @@ def plot_scene(records, scene, reference, path: Path) -> bool:
         style = "-" if s.startswith("scipy:") else "--" if s in ("euler", "rk4", "abm") else "-"
         lw = 1.0 if s.startswith("scipy:") else 2.0
         ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, marker=markers[i % len(markers)], lw=lw,
-                  ms=5, label=s)
+                  ms=5, label=s, color=colors[i % len(colors)])
     if reference is not None and reference.cross is not None and reference.cross.max_rel > 0:
         ax.axhline(reference.cross.max_rel, color="0.5", ls=":", lw=1,
-                   label="reference cross-check")
+                   label="reference cross-check (bound)")
     if clipped:
         ax.axhline(PLOT_CEILING, color="r", ls="--", lw=0.8, label=f"errors above {PLOT_CEILING:g} drawn here")
     ax.set_xlabel("wall time after compile, median [s]")
@@ -278,6 +282,9 @@ def write_report(run, out: Path) -> Path:
     from .machine import machine_line
     out.mkdir(parents=True, exist_ok=True)
     write_csv(run.records, out / "work_precision.csv")
+    meta = {"machine": run.machine, "command": run.command, "repeats": run.repeats, "limit": run.limit,
+            "wall_total": run.wall_total, "scenes": [sc.key for sc in run.scenes], "solvers": run.solvers}
+    (out / "work_precision.meta.json").write_text(json.dumps(meta, indent=1))
     lines = ["# Work-precision of regmech's solvers", "",
              f"Machine: {machine_line(run.machine)}.", "",
              f"Command: `{run.command}`; {run.repeats} runs per setting, median (runs under "

@@ -139,7 +139,9 @@ def run_setting(model, scene, setting, reference, repeats, limit, build_s, compi
     rec.solver_s = statistics.median(solver_walls)
     rec.runs = len(walls)
     st = res.stats
-    rec.steps, rec.rhs_calls, rec.jac_calls, rec.events = st.steps, st.rhs_calls, st.jac_calls, len(res.events)
+    # a solver may leave a counter unset (None): recorded as 0
+    rec.steps, rec.rhs_calls, rec.jac_calls = st.steps or 0, st.rhs_calls or 0, st.jac_calls or 0
+    rec.events = len(res.events)
     rec.extra = dict(st.extra)
     if reference is not None:
         try:
