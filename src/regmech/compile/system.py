@@ -448,16 +448,27 @@ class CompiledSystem:
         S2 = self.Sc.multiply(self.Sc)
         return np.sqrt(np.abs(k) * (S2 @ inv_m))
 
-    def stiffness_hint(self, ratio: float = 1e3) -> str:
-        """Names the stiffest link when the link spectrum is stretched (for error messages)."""
-        if self.Sc.shape[0] < 2:
+    def stiffness_hint(self, ratio: float = 1e3, always: bool = False) -> str:
+        """Names the stiffest link when the link spectrum is stretched (for error messages).
+
+        With ``always`` (the divergence of a fixed or explicit step, whose
+        stability limit the fastest link sets whatever the spread) the link
+        with the highest local frequency is named even when the spread is
+        below ``ratio``.
+        """
+        if self.Sc.shape[0] == 0:
             return ""
         w = self.link_frequencies()
         pos = w[w > 0]
-        if pos.size < 2 or pos.max() / pos.min() < ratio:
+        if pos.size == 0:
             return ""
         i = int(np.argmax(w))
         dev = self.structure.compliant[i].device
+        if pos.size < 2 or pos.max() / pos.min() < ratio:
+            if not always:
+                return ""
+            return (f" The fastest link, {type(dev).__name__} '{dev.name}' (local mode {w[i] / 2 / np.pi:.3g} Hz, "
+                    f"i.e. {w[i]:.3g} rad/s), sets the step an explicit method needs.")
         return (f" The stiffest link, {type(dev).__name__} '{dev.name}' (local mode {w[i] / 2 / np.pi:.3g} Hz, "
                 f"{pos.max() / pos.min():.3g} times the softest), is the likely cause: make it rigid "
                 f"(Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it.")

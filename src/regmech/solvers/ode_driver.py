@@ -452,7 +452,8 @@ def _divergence_error(problem, stepper, name, why, growth, explicit, t_seg, u_se
     remedy = _stability_message(problem, t_seg, u_seg, stepper) if explicit else stepper.divergence_remedy()
     return SimulationError(
         f"solver '{name}' diverged at t={stepper.t:.6g} s (step h={h:.3g} s) in model '{c.model.name}': {what}; "
-        f"the integration is numerically unstable (see regmech.solvers.divergence).{remedy}{c.stiffness_hint()}")
+        f"the integration is numerically unstable (see regmech.solvers.divergence).{remedy}"
+        f"{c.stiffness_hint(always=True)}")
 
 
 def _few_steps_check(problem, stepper, name, t, u, t_end, growth, explicit):
@@ -475,7 +476,7 @@ def _few_steps_check(problem, stepper, name, t, u, t_end, growth, explicit):
         f"one step amplifies the linearised motion by up to {q:.3g}, i.e. {q:.3g}^{n_left} over the {n_left} "
         f"steps left, beyond max_growth = {growth.max_growth:g}; a run this short has no history for the growth "
         f"tests, so it is judged before it starts (see regmech.solvers.divergence).{remedy}"
-        f"{problem.c.stiffness_hint()}")
+        f"{problem.c.stiffness_hint(always=True)}")
 
 
 def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None, *, max_events=100000,
