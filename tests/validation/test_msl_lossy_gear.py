@@ -37,11 +37,35 @@ def test_lossy_gear_power_loss_is_never_negative_and_torques_balance():
         assert np.allclose(-tb[drives_a], 2.0 * 0.5 * ta[drives_a], rtol=1e-8)
 
 
-def test_lossy_gear_with_bearing_friction_runs_with_unique_holding_torques():
-    """Demo2: both friction elements can be stuck on the same motion (no unique solution in
-    MSL's words). regmech resolves it by its documented rule (the later device acts with its
-    kinetic torque at zero speed); Dymola resolves it differently, so only sanity is checked."""
-    res = lossy_gear_demo(2).simulate(0.5, dt_out=1e-3, rtol=1e-8)
-    assert np.all(np.isfinite(res["Inertia2.w"])) and np.abs(res["Inertia2.w"]).max() < 0.1
-    both = (res["gear.mode"] == 0) & (res["bearingFriction.mode"] == 0)
-    assert not both.any()                              # never both stuck: the holding torque stays unique
+def _rest_changes(t, *modes):
+    """Instants where the motion stops or starts: at rest while any of the devices is stuck."""
+    rest = np.zeros(len(t), bool)
+    for m in modes:
+        rest |= np.asarray(m) == 0
+    k = np.nonzero(np.diff(rest.astype(int)))[0]
+    return [(float(t[i + 1]), bool(rest[i + 1])) for i in k]
+
+
+def test_lossy_gear_demo2_against_reference(reference_dir):
+    """Demo2: the gear and a bearing friction lock the same motion ("no unique solution" in MSL's
+    words: the split of the holding torque between them is free). regmech's holding-in-turn rule
+    (README) fixes the split; Dymola splits its own way. What is unique, and checked, is the
+    motion: speeds and angles, and the instants where the motion stops and starts. The gear's
+    mode changes come in Dymola's order; the instants of those that happen at rest depend on the
+    split (Dymola: gear rolls at 0.2304 s when the motion starts; regmech: at 0.1995 s, when the
+    gear's share reaches its limit and the bearing takes the rest)."""
+    ref = np.genfromtxt(reference_dir / "LossyGearDemo2.csv", delimiter=",", names=True)
+    res = lossy_gear_demo(2).simulate(0.5, dt_out=5e-4, rtol=1e-9)
+    for name, col, tol in (("Inertia2.w", "Inertia2w", 2e-5), ("Inertia2.phi", "Inertia2phi", 2e-6)):
+        err = np.max(np.abs(np.interp(ref["time"], res.t, res[name]) - ref[col]))
+        assert err < tol, (name, err)
+    want = _rest_changes(ref["time"], ref["gearmode"], ref["bearingFrictionmode"])[1:]   # [0]: start-up
+    got = _rest_changes(res.t, res["gear.mode"], res["bearingFriction.mode"])
+    assert [g[1] for g in got] == [w[1] for w in want] == [True, False, True, False]
+    assert np.allclose([g[0] for g in got], [w[0] for w in want], atol=1e-5)
+    expected = [(a, b) for _, a, b in _changes(ref["time"], ref["gearmode"])]
+    assert [(e.old_mode, e.new_mode) for e in res.events if e.component == "gear"] == expected[1:]
+    # while at rest the two friction torques never oppose each other (friction does not drive)
+    at_rest = (res["gear.mode"] == 0) | (res["bearingFriction.mode"] == 0)
+    loss = res["gear.flange_a.tau"] + res["gear.flange_b.tau"] / 2.0      # gear's loss torque at flange_a
+    assert np.all(loss[at_rest] * res["bearingFriction.tau"][at_rest] >= -1e-7)   # 1e-9 relative: the relief event tolerance

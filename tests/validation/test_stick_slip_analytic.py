@@ -97,25 +97,52 @@ def test_brake_holds_without_drift_and_breaks_away_above_peak():
     assert np.allclose(res["brake.tau"][before], res["load.tau"][before], atol=1e-9)
 
 
-def test_two_lockable_devices_on_one_rigid_group_share_by_the_documented_rule():
-    # two brakes lock the same inertia: the holding torque would not be unique. Rule: the first
-    # (in model order) holds, the second acts with its kinetic torque at zero speed; so the
-    # inertia breaks away when the load exceeds b1's static plus b2's kinetic capacity.
+def _double_brake(load_signal):
     m = rm.Model("double_brake")
-    load = m.add(Torque("load", tau=rm.signals.Ramp(height=15.0, duration=1.0)))
+    load = m.add(Torque("load", tau=load_signal))
     J = m.add(Inertia("J", J=1.0, phi0=0.0, w0=0.0))
-    b1 = m.add(Brake("b1", mu=0.5, peak=1.2, fn_max=10.0))      # static 6, kinetic 5
-    b2 = m.add(Brake("b2", mu=0.5, peak=1.2, fn_max=10.0))
+    m.add(Brake("b1", mu=0.5, peak=1.2, fn_max=10.0))      # static 6, kinetic 5
+    m.add(Brake("b2", mu=0.5, peak=1.2, fn_max=10.0))
     m.connect(load.flange, J.flange_a)
-    m.connect(J.flange_b, b1.flange)
-    m.connect(J.flange_b, b2.flange)
-    res = m.simulate(1.0, dt_out=1e-3, rtol=1e-9)
-    both_stuck = (res["b1.mode"] == 0) & (res["b2.mode"] == 0)
-    assert not both_stuck.any()
+    m.connect(J.flange_b, m["b1"].flange)
+    m.connect(J.flange_b, m["b2"].flange)
+    return m
+
+
+def test_two_lockable_devices_on_one_rigid_group_hold_in_turn():
+    # two brakes lock the same inertia: the split of the holding torque would not be unique.
+    # Rule ("holding in turn"): b1 (first in model order) holds alone while b2 is Held (mode 3,
+    # no torque); past b1's static capacity 6 N m, b1 acts with its kinetic 5 N m at zero speed
+    # and b2 holds the rest; the inertia breaks away at kinetic(b1) + static(b2) = 11 N m.
+    res = _double_brake(rm.signals.Ramp(height=15.0, duration=1.0)).simulate(1.0, dt_out=1e-3, rtol=1e-9)
+    changes = [(round(e.t, 6), e.component, e.old_mode, e.new_mode) for e in res.events]
+    assert changes[:2] == [(0.4, "b1", 0, 1), (0.4, "b2", 3, 0)]
+    assert ("b2", 0, 1) in [c[1:] for c in changes]
     first_motion = res.t[np.argmax(np.abs(res["J.w"]) > 1e-9)]
-    assert first_motion == pytest.approx(11.0 / 15.0, abs=2e-3)     # 6 + 5 N m
-    held = res.t < 0.7
+    assert first_motion == pytest.approx(11.0 / 15.0, abs=2e-3)     # 5 + 6 N m
+    alone = res.t < 0.39
+    assert np.allclose(res["b2.tau"][alone], 0.0, atol=1e-12) and np.all(res["b2.mode"][alone] == 3)
+    turn = (res.t > 0.41) & (res.t < 0.72)
+    assert np.allclose(res["b1.tau"][turn], 5.0, atol=1e-9)
+    held = res.t < 0.72
     assert np.allclose(res["b1.tau"][held] + res["b2.tau"][held], res["load.tau"][held], atol=1e-8)
+
+
+def test_friction_never_drives_the_motion_it_holds_when_the_load_reverses():
+    # load 0 -> 9 -> -9 -> 0 N m: within kinetic(b1) + static(b2) = 11, so J never moves. When the
+    # load falls below b1's kinetic 5 N m, b1 sticks again (relief event) instead of pushing
+    # against b2; the same in the reverse direction.
+    load = rm.signals.Table([(0, 0), (1, 9), (2, -9), (3, 0)])
+    res = _double_brake(load).simulate(3.0, dt_out=1e-3, rtol=1e-9)
+    assert np.abs(res["J.w"]).max() == 0.0
+    assert np.allclose(res["b1.tau"] + res["b2.tau"], res["load.tau"], atol=1e-8)
+    assert (res["b1.tau"] * res["b2.tau"]).min() > -1e-6          # never opposing each other
+    got = [(round(e.t, 6), e.component, e.old_mode, e.new_mode) for e in res.events]
+    t6, t5 = 6.0 / 9.0, 1.0 + 4.0 / 18.0                          # b1 past 6; load back below 5
+    assert got == [(round(t6, 6), "b1", 0, 1), (round(t6, 6), "b2", 3, 0),
+                   (round(t5, 6), "b1", 1, 0), (round(t5, 6), "b2", 0, 3),
+                   (round(1 + 15 / 18, 6), "b1", 0, -1), (round(1 + 15 / 18, 6), "b2", 3, 0),
+                   (round(2 + 4 / 9, 6), "b1", -1, 0), (round(2 + 4 / 9, 6), "b2", 0, 3)]
 
 
 def test_chattering_guard_names_device_time_and_remedy():

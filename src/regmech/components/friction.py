@@ -15,6 +15,8 @@ Backward   -1    ``lam = -tau_k(|w_rel|)``
 Stuck       0    ``a_rel = 0`` (``lam`` = holding torque)
 Forward     1    ``lam = +tau_k(|w_rel|)``
 Free        2    ``lam = 0``   (normal force <= 0)
+Held        3    ``lam = 0``   (zero relative speed kept by other stuck
+                               devices: ``FrictionSet._share_redundant``)
 =========  ====  ===========================================
 
 with the kinetic capacity ``tau_k(w) = mu(w) * cgeo * fn_max * f_normalized(t)``,
@@ -43,7 +45,7 @@ from ..component import Device, Param
 from ..errors import ChatteringError, SimulationError, StructureError
 from ..ports import ROTATIONAL, TRANSLATIONAL
 
-BACKWARD, STUCK, FORWARD, FREE = -1, 0, 1, 2
+BACKWARD, STUCK, FORWARD, FREE, HELD = -1, 0, 1, 2, 3
 
 
 class FrictionDevice(Device):
@@ -56,7 +58,7 @@ class FrictionDevice(Device):
     def relation(self, mode, quadrant, w_abs, t, left=False):
         """Equation of a non-stuck row: ``c_own lam + c_cpl lam_cpl = rhs``; returns
         (c_own, c_cpl, rhs, d rhs / d|w_rel|)."""
-        if mode == FREE:
+        if mode == FREE or mode == HELD:
             return 1.0, 0.0, 0.0, 0.0
         tk, dk = self.kinetic(w_abs, t, left)
         return 1.0, 0.0, mode * tk, mode * dk
@@ -291,7 +293,7 @@ class LossyGear(FrictionDevice):
         return (1.0 - 1.0 / eta2, -bf2) if q > 0 else (1.0 - eta1, -bf1)
 
     def relation(self, mode, quadrant, w_abs, t, left=False):
-        if mode == FREE:
+        if mode == FREE or mode == HELD:
             return 1.0, 0.0, 0.0, 0.0
         k, b = self._quadrant_loss(mode, quadrant, self._interp(w_abs))
         # tau_loss = k (lam_g + tau_loss) + b  ->  (1 - k) tau_loss - k lam_g = b
@@ -321,7 +323,7 @@ class LossyGear(FrictionDevice):
         return 1 if tau_eta >= 0 else -1
 
     def event_pair(self, mode, quadrant, w, tau_loss, lam_g, t, left):
-        if mode == FREE:
+        if mode == FREE or mode == HELD:
             return 1.0, 1.0
         if mode == STUCK:
             hi, lo = self._limits(tau_loss, lam_g)
@@ -334,11 +336,13 @@ class LossyGear(FrictionDevice):
     def first_step(self, old, w, crossed1, crossed2, initial, scale, arel):
         if self._ideal:
             return FREE
-        if initial or old == FREE:
+        if initial or old == FREE or old == HELD:
             return FORWARD if w > scale else BACKWARD if w < -scale else STUCK
         if old == STUCK:
             return FORWARD if crossed1 else BACKWARD if crossed2 else STUCK
-        if crossed1 or (abs(w) <= scale and w * arel < 0):
+        # found by the root finder, or within round-off of zero and still approaching it, or already
+        # past it by round-off (another device's root, located on the far side, at the same instant)
+        if crossed1 or (abs(w) <= scale and (w * arel < 0 or old * w < 0)):
             return STUCK
         return old
 
@@ -396,6 +400,7 @@ class FrictionSet:
         self._ev_key, self._ev_masks = None, None
         self._coupled_rows = [j for j, d in enumerate(self.devices) if d.coupled]
         self._small = None
+        self._relief = []      # (row, holder's lam index, sign, tol): see _relief_events
         if self.mf <= 8 and not self._coupled_rows:
             Gc = self.G.tocsr()
             c = compiled
@@ -511,10 +516,14 @@ class FrictionSet:
                     w += cf * y[k]
                 if m == FREE:
                     out[2 * j] = w if one_way else 1.0
+                elif m == HELD:
+                    out[2 * j] = 1.0
                 else:
                     g = m * w
                     out[2 * j] = g if g != 0.0 else 1e-300
             out[2 * j + 1] = fn if self.engaged[j] else (-fn if fn != 0.0 else 1e-300)
+        for j, il, sign, tol in self._relief:
+            out[2 * j] = modes[j] * sign * y[il] + tol
         return out
 
     def slopes(self, t, v, modes):
@@ -534,6 +543,10 @@ class FrictionSet:
 
         * stuck: ``tau0_max - |lam|`` (a freewheel: ``tau0_max - lam``, it holds any negative torque);
         * sliding: ``mode * w_rel``; free: 1 (a freewheeling one-way clutch: ``w_rel``, it locks at 0);
+          held: 1 (the holders' functions decide);
+        * sliding at zero speed while other devices hold the motion (``_relief_events``):
+          ``mode * s * lam_holder + tol``, crossing when the holder starts to resist this
+          device's kinetic torque instead of sharing the load with it;
         * engagement: ``fn`` while engaged, ``-fn`` while not (a normal force of exactly zero
           is 'not yet engaged': a tiny positive value keeps IDA from deactivating a root
           function that is identically zero at the start).
@@ -554,8 +567,10 @@ class FrictionSet:
         if self._ev_key != key:
             stuck = modes == STUCK
             free = modes == FREE
+            held = modes == HELD
+            slide = ~stuck & ~free & ~held
             self._ev_masks = (stuck, stuck & self._one_way, stuck & ~self._one_way, free & self._one_way,
-                              free & ~self._one_way, ~stuck & ~free, np.where(~stuck & ~free, modes, 0))
+                              (free & ~self._one_way) | held, slide, np.where(slide, modes, 0))
             self._ev_key = key
         stuck, st_ow, st_2w, fr_ow, fr_2w, slide, sign = self._ev_masks
         first = sign * w
@@ -574,6 +589,8 @@ class FrictionSet:
         for j in self._coupled_rows:
             out[2 * j], out[2 * j + 1] = self.devices[j].event_pair(
                 int(modes[j]), int(self.quadrant[j]), w[j], lam[j], lam_all[self.coupled[j]], t, left)
+        for j, il, sign, tol in self._relief:
+            out[2 * j] = modes[j] * sign * y[il] + tol
         return out
 
     # -- mode logic -----------------------------------------------------------------
@@ -593,6 +610,11 @@ class FrictionSet:
         lam_rate = yp0[c.ilam[self.offset:]]        # d lam/dt at the event (IDA's interpolant)
         scale = 1e-9 * max(1.0, float(np.abs(v).max(initial=0.0)))
         crossed = np.zeros(self.n_events) if crossed is None else np.asarray(crossed)
+        # devices sliding at zero speed while another one holds the motion (see _relief_events):
+        # their speed is zero by the holder's constraint, so its round-off sign says nothing;
+        # only their relief event (or an event of the holder, below) changes them
+        for j, *_ in ([] if initial else self._relief):
+            w[j] = 0.0
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
             engaged = dev.normal_force(t, left) > 0
@@ -610,6 +632,9 @@ class FrictionSet:
                 new[j] = FREE
             elif initial or old[j] == FREE:
                 new[j] = FORWARD if w[j] > 0 else BACKWARD if w[j] < 0 else STUCK
+            elif old[j] == HELD:
+                # its holders kept it at zero speed (to round-off): it holds again unless it has moved
+                new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
             elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
                                                      (abs(w[j]) <= scale and
                                                       (w[j] * arel[j] < 0 or old[j] * w[j] < 0))):
@@ -659,10 +684,15 @@ class FrictionSet:
                     changed = True
             if not changed:
                 break
+            # a holder let go: the devices it held (Held, at zero speed) hold again, and the
+            # rule of _share_redundant decides among them on the next pass
+            new[new == HELD] = STUCK
         else:
             raise SimulationError(f"stick/slip logic did not settle at t={t:.9g} for "
                                   f"{[d.name for d in self.devices]}")
         y, yp = c.assemble_y(t, x, v, z, new)
+        self._relief = self._relief_events(t, y, yp, new, scale)
+        self._ev_key = None
         self.engaged = np.array([d.normal_force(t, False) > 0 for d in self.devices])
         changes = [(self.devices[j].name, int(old[j]), int(new[j])) for j in range(self.mf)
                    if old[j] != new[j] and not initial]
@@ -671,43 +701,86 @@ class FrictionSet:
     def _share_redundant(self, t, x, v, z, modes) -> bool:
         """Resolve stuck devices that lock a motion already locked by others.
 
-        Rule (documented in the README): going through the stuck devices in model
-        order, a device whose relative motion is already fixed by the rigid
-        constraints and the stuck devices before it does not stick; it keeps
-        acting with its kinetic torque at zero speed, in the direction that
-        relieves the device that holds (the holding torque then stays unique).
-        When the holder breaks away, the relative speed leaves zero and the usual
-        logic takes over. Returns False when no stuck friction row is redundant
-        (the model itself is singular).
+        Rule (documented in the README, "holding in turn"): going through the stuck
+        devices in model order, a device whose relative motion is already fixed by
+        the rigid constraints and the stuck devices before it is *Held*: it stays at
+        zero relative speed and transmits no torque, so the holding torque is unique
+        and carried by the first device. When that holder's load passes its static
+        capacity it does not let the motion go: it acts with its kinetic torque at
+        zero speed (sliding, held) and the held devices hold again, next in model
+        order (``settle``). The motion breaks away when the last holder's share
+        passes its capacity: for two devices, at ``kinetic(first) + static(second)``.
+        When the load falls back so that the holder would resist the kinetic torque
+        of a device sliding at zero speed, that device sticks again
+        (``_relief_events``). Friction thus never drives the motion it holds.
+        Returns False when no stuck friction row is redundant (the model itself is
+        singular).
         """
         c = self.c
         A = [c.Gpv.toarray()] if c.Gpv.shape[0] else []
         rank = np.linalg.matrix_rank(np.vstack(A)) if A else 0
-        kept, dependent = [], []
+        dependent = []
         for j in np.nonzero(np.asarray(modes) == STUCK)[0]:
             row = self.G[j].toarray()
-            trial = np.vstack(A + [row])
-            r = np.linalg.matrix_rank(trial)
+            r = np.linalg.matrix_rank(np.vstack(A + [row]))
             if r > rank:
                 A.append(row)
-                kept.append(j)
                 rank = r
             else:
                 dependent.append(j)
         if not dependent:
             return False
-        modes[dependent] = FREE
-        for j in dependent:
-            # the direction that relieves the holders most (smallest largest holding torque)
-            best, best_load = FREE, np.inf
-            for direction in ((FORWARD,) if self.devices[j].one_way else (FORWARD, BACKWARD)):
-                modes[j] = direction
-                _, lam, _ = c.accelerations(t, x, v, z, modes)
-                load = float(np.abs(lam[self.offset + np.array(kept, dtype=int)]).max(initial=0.0))
-                if load < best_load:
-                    best, best_load = direction, load
-            modes[j] = best
+        modes[dependent] = HELD
         return True
+
+    def _relief_events(self, t, y, yp, modes, scale):
+        """Event rows for devices sliding at zero speed while one stuck device holds their motion.
+
+        Such a device (a holder that passed its capacity, see ``_share_redundant``) acts with
+        its kinetic torque ``lam_j = mode_j tau_k`` and the holder ``h`` carries the rest. With
+        a virtual motion ``dv`` that keeps the rigid constraints and the other stuck devices and
+        moves the holder by ``G_h dv = 1``, the device moves by ``c = G_j dv``: the holder's torque
+        acts on the device's coordinate as ``lam_h / c``. Sharing means both resist in the same
+        direction, ``mode_j sign(c) lam_h >= 0``; the event function is that product plus a
+        tolerance (1e-9 of the device's torque, so that it starts positive when the holder's
+        share starts at zero) and crosses zero when the load has fallen below the device's
+        kinetic torque: the device then sticks again. With several holders of one motion no
+        function is set (the device stays sliding until its own speed leaves zero).
+        """
+        c = self.c
+        v = y[c.iv]
+        w = self.w_rel(v)
+        lam = y[c.ilam[self.offset:]]
+        sliding = [j for j in range(self.mf) if modes[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale]
+        stuck = [int(h) for h in np.nonzero(np.asarray(modes) == STUCK)[0]]
+        if not sliding or not stuck:
+            return []
+        rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
+        G = self.G.toarray()
+
+        def spans(rows, target):
+            base = np.vstack([rigid] + [G[k][None, :] for k in rows])
+            return np.linalg.matrix_rank(np.vstack([base, target[None, :]])) == np.linalg.matrix_rank(base)
+
+        out = []
+        for j in sliding:
+            if not spans(stuck, G[j]):
+                continue                 # its motion is free: it is really sliding
+            holders = [h for h in stuck if not spans([k for k in stuck if k != h], G[j])]
+            if len(holders) != 1:
+                continue
+            h = holders[0]
+            others = [k for k in stuck if k != h]
+            A = np.vstack([rigid] + [G[k][None, :] for k in others] + [G[h][None, :]])
+            rhs = np.zeros(A.shape[0])
+            rhs[-1] = 1.0
+            dv = np.linalg.lstsq(A, rhs, rcond=None)[0]
+            cj = float(G[j] @ dv)
+            if abs(cj) < 1e-12:
+                continue
+            tol = 1e-9 * max(1.0, abs(float(lam[j])))
+            out.append((j, int(c.ilam[self.offset + h]), float(np.sign(cj)), tol))
+        return out
 
     def _fix_quadrant(self, j, dev, modes, lam):
         """Lossy gear rolling: make the assumed driving side agree with the torque (once per settle)."""
@@ -723,6 +796,8 @@ class FrictionSet:
     def _one_way_step(dev, j, old, engaged, w, lam, crossed, initial, scale, t):
         """First step of the mode logic for a one-way clutch (no Backward mode)."""
         slide = FORWARD if engaged else FREE
+        if old == HELD:
+            return STUCK if abs(w) <= scale else slide
         if initial:
             if w < -scale:
                 raise SimulationError(
