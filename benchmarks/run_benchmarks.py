@@ -17,8 +17,10 @@ re-assembled (it is written by hand from the figures).
 
 Options: ``--scenes``, ``--solvers``, ``--repeats`` (3), ``--time-limit`` per
 run [s] (120 for work-precision, 60 for hard cases), ``--cache`` (reference
-cache folder), ``--cases`` (hard-case keys), ``--merge`` (re-run some scenes and
-keep the other scenes' records of the previous run in the report).
+cache folder), ``--cases`` (hard-case keys), ``--merge`` (re-run some scenes or
+hard cases and keep the others' records of the previous run in the report; with
+``--hard`` and no ``--cases``: run only the cases not yet recorded, which resumes
+an interrupted run).
 """
 
 from __future__ import annotations
@@ -107,24 +109,69 @@ def _merge_previous(run, args) -> None:
         run.wall_total += json.loads(meta_path.read_text()).get("wall_total", 0.0)
 
 
-def run_hard(args) -> None:
-    from regmech.bench.hard import FULL, all_cases, hard_markdown, run_cases
-    from regmech.bench.machine import machine_info
-    from regmech.bench.runner import available_solvers
-    cases = [c for c in all_cases() if not args.cases or c.key in args.cases]
-    solvers = args.solvers or available_solvers()
-    limit = args.time_limit or 60.0
-    t0 = time.perf_counter()
-    outcomes = run_cases(cases, solvers, size=FULL, limit=limit)
-    wall = time.perf_counter() - t0
-    WP_DIR.mkdir(parents=True, exist_ok=True)
-    with open(WP_DIR / "hard_cases.csv", "w", newline="") as fh:
-        rows = [asdict(o) for o in outcomes]
+HARD_CSV = WP_DIR / "hard_cases.csv"
+HARD_META = WP_DIR / "hard_cases.meta.json"
+
+
+def _read_hard_csv(path):
+    """The outcomes stored by a previous (possibly interrupted) hard-case run."""
+    from regmech.bench.hard import HardOutcome
+    if not path.exists():
+        return []
+    out = []
+    with open(path, newline="") as fh:
+        for row in csv.DictReader(fh):
+            for k in ("value", "tolerance", "wall_s"):
+                row[k] = float(row[k]) if row[k] not in ("", "nan") else float("nan")
+            for k in ("steps", "events"):
+                row[k] = int(float(row[k])) if row[k] not in ("", "None", "nan") else 0
+            out.append(HardOutcome(**row))
+    return out
+
+
+def _write_hard_csv(outcomes, path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [asdict(o) for o in outcomes]
+    with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    (RESULTS / "hard_cases.md").write_text(hard_markdown(cases, outcomes, solvers, FULL, machine_info(), limit, wall))
-    print(f"hard cases: {len(outcomes)} runs in {wall / 60:.1f} min -> {RESULTS / 'hard_cases.md'}")
+
+
+def run_hard(args) -> None:
+    """Every solver on every full-size hard case. The CSV is rewritten after each case, so an
+    interrupted run keeps what finished; ``--merge`` re-runs only ``--cases`` (or the cases not
+    yet in the CSV when ``--cases`` is not given) and keeps the other cases' outcomes."""
+    import json
+    from regmech.bench.hard import FULL, all_cases, hard_markdown, run_cases
+    from regmech.bench.machine import machine_info
+    from regmech.bench.runner import available_solvers
+    everything = all_cases()
+    previous = _read_hard_csv(HARD_CSV) if args.merge else []
+    done = {o.case for o in previous}
+    if args.cases:
+        cases = [c for c in everything if c.key in args.cases]
+    else:
+        cases = [c for c in everything if not args.merge or c.key not in done]
+    todo = {c.key for c in cases}
+    outcomes = [o for o in previous if o.case not in todo]
+    solvers = args.solvers or available_solvers()
+    limit = args.time_limit or 60.0
+    meta = json.loads(HARD_META.read_text()) if args.merge and HARD_META.exists() else {}
+    wall = float(meta.get("wall_total", 0.0))
+    for case in cases:
+        t0 = time.perf_counter()
+        outcomes += run_cases([case], solvers, size=FULL, limit=limit)
+        wall += time.perf_counter() - t0
+        _write_hard_csv(outcomes, HARD_CSV)
+        HARD_META.write_text(json.dumps({"wall_total": wall, "limit": limit}))
+    order = {c.key: i for i, c in enumerate(everything)}
+    outcomes.sort(key=lambda o: order.get(o.case, len(order)))
+    shown = [c for c in everything if c.key in {o.case for o in outcomes}]
+    all_solvers = list(dict.fromkeys(solvers + [o.solver for o in outcomes]))
+    (RESULTS / "hard_cases.md").write_text(hard_markdown(shown, outcomes, all_solvers, FULL, machine_info(),
+                                                         limit, wall))
+    print(f"hard cases: {len(outcomes)} runs, {wall / 60:.1f} min in total -> {RESULTS / 'hard_cases.md'}")
 
 
 def _demote(text: str, prefix: str) -> str:
@@ -184,7 +231,8 @@ def main(argv=None) -> int:
     p.add_argument("--rewrite", action="store_true",
                    help="rewrite the work-precision report from the stored CSV (no runs)")
     p.add_argument("--merge", action="store_true",
-                   help="with --wp --scenes: keep the previous records of the other scenes in the report")
+                   help="with --wp --scenes or --hard: keep the previous records of the other scenes/cases "
+                        "(--hard without --cases: resume, running only the cases not yet recorded)")
     args = p.parse_args(argv)
     if not (args.wp or args.hard or args.assemble or args.all or args.rewrite):
         p.error("choose --wp, --hard, --assemble, --rewrite or --all")
