@@ -287,3 +287,26 @@ def test_torque_source_and_outputs():
     np.testing.assert_allclose(np.ravel(lin.W), [0.0, 1.0])
     assert {"J0.phi", "J1.w", "c1.tau", "c1.phi_rel"} <= set(lin.outputs())
     assert "drive.tau" not in lin.outputs()
+
+
+def test_linearize_accepts_held_for_devices_locking_an_already_locked_motion():
+    # two brakes on one inertia: 'stuck' for both is singular (named, with the remedy);
+    # 'held' (what a simulation records for the second) gives the locked motion
+    from regmech.components import Brake
+    m = rm.Model("two_brakes")
+    J = m.add(Inertia("J", J=1.0))
+    J2 = m.add(Inertia("J2", J=2.0))
+    s = m.add(Spring("s", c=100.0))
+    m.connect(J.flange_b, s.flange_a)
+    m.connect(s.flange_b, J2.flange_a)
+    m.add(Brake("b1", fn_max=10.0))
+    m.add(Brake("b2", fn_max=10.0))
+    m.connect(J2.flange_b, m["b1"].flange)
+    m.connect(J2.flange_b, m["b2"].flange)
+    lm = m.linearize(modes={"b1": "stuck", "b2": "held"})
+    assert np.allclose(np.asarray(lm.M.todense() if hasattr(lm.M, "todense") else lm.M), [[1.0]])
+    assert np.allclose(np.asarray(lm.C.todense() if hasattr(lm.C, "todense") else lm.C), [[100.0]])
+    assert np.allclose(np.asarray(m.linearize(modes=[0, 3]).C.todense() if hasattr(lm.C, "todense")
+                                  else m.linearize(modes=[0, 3]).C), [[100.0]])
+    with pytest.raises(rm.StructureError, match="'held'"):
+        m.linearize(modes={"b1": "stuck", "b2": "stuck"})

@@ -57,7 +57,9 @@ from ..errors import ParameterError, StructureError
 #: independent coordinates above which the matrices are kept sparse (``sparse=None``)
 SPARSE_ABOVE = 300
 
-MODE_CODES = {"backward": -1, "stuck": 0, "forward": 1, "free": 2}
+#: friction modes by name; "held" (3) is what a simulation records for a device whose motion other
+#: stuck devices lock (no torque of its own), so that modes read from a Result can be passed back
+MODE_CODES = {"backward": -1, "stuck": 0, "forward": 1, "free": 2, "held": 3}
 
 
 @dataclass
@@ -357,9 +359,10 @@ def _mode_code(name, mode) -> int:
     if isinstance(mode, str):
         code = MODE_CODES.get(mode.lower())
     else:
-        code = int(mode) if int(mode) == mode and int(mode) in (-1, 0, 1, 2) else None
+        code = int(mode) if int(mode) == mode and int(mode) in (-1, 0, 1, 2, 3) else None
     if code is None:
-        raise ParameterError(f"modes: '{name}' got {mode!r}; use -1/0/1/2 or 'Backward'/'Stuck'/'Forward'/'Free'")
+        raise ParameterError(f"modes: '{name}' got {mode!r}; use -1/0/1/2/3 or "
+                             f"'Backward'/'Stuck'/'Forward'/'Free'/'Held'")
     return code
 
 

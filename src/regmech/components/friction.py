@@ -829,7 +829,7 @@ class FrictionSet:
         names = ", ".join(f"{type(d).__name__} '{d.name}'" for d in stuck)
         return (f"the stuck friction devices {names} lock the same rigid group more than once, so their holding "
                 f"torques are not unique (singular system). Remedy: put a compliance (an elastic Shaft) between "
-                f"them, or merge them into one device.")
+                f"them, or merge them into one device (in linearize(modes=...): give all but one of them 'held').")
 
     def chatter_guard(self, window=None, count=50):
         return ChatterGuard(1e-6 if window is None else window, count)

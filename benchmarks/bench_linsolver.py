@@ -1,0 +1,123 @@
+"""Which linear solver IDA should use: dense, band (reverse Cuthill-McKee ordering) or sparse.
+
+    python benchmarks/bench_linsolver.py [--repeats 5] [--quick]
+
+``regmech.solvers.ida.choose_linsolver`` picks dense up to ``dense_max``
+unknowns of the index-1 DAE and band when the reordered bandwidth
+``lband + uband + 1`` is at most ``band_max``, sparse otherwise. This script
+times the three on the same runs (medians of ``--repeats`` runs, compile time
+excluded, BLAS limited to one thread as in the other solver benchmarks) for
+trains of n cars (narrow band, N growing) and for the library's drivetrain
+scenes (small, wider coupling), and writes ``benchmarks/results/linsolver.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "results" / "linsolver.md"
+SOLVERS = ("dense", "band", "sparse")
+
+
+def hub(n: int):
+    """A wide coupling: a hub inertia joined to n satellite inertias by spring-dampers, each
+    satellite damped to ground, a torque step on the hub (no ordering gives a narrow band)."""
+    import regmech as rm
+    from regmech.components import Damper, Fixed, Inertia, SpringDamper, Torque
+    m = rm.Model(f"hub_{n}")
+    h = m.add(Inertia("hub", J=1.0))
+    g = m.add(Fixed("ground"))
+    tq = m.add(Torque("drive", tau=rm.signals.Step(height=10.0, start_time=0.1)))
+    m.connect(tq.flange, h.flange_a)
+    for i in range(n):
+        s = m.add(Inertia(f"sat{i}", J=0.1 * (1 + i % 7)))
+        k = m.add(SpringDamper(f"link{i}", c=1e3 * (1 + i % 5), d=1.0))
+        d = m.add(Damper(f"drag{i}", d=0.5))
+        m.connect(h.flange_b, k.flange_a)
+        m.connect(k.flange_b, s.flange_a)
+        m.connect(s.flange_b, d.flange_a)
+        m.connect(d.flange_b, g.flange)
+    return m
+
+
+def scenes(quick: bool):
+    from regmech.library import chains, coupled_clutches, excavator_swing, vehicle_launch
+    sizes = (5, 20, 80) if quick else (5, 10, 20, 40, 80, 160, 400)
+    out = [(f"train n={n}", lambda n=n: chains.train(n, c_r=0.0), 20.0, 0.04) for n in sizes]
+    out += [(f"hub n={n}", lambda n=n: hub(n), 2.0, 0.01) for n in ((10, 40) if quick else (10, 40, 100, 200, 400))]
+    out += [("coupled_clutches", coupled_clutches, 1.5, 1e-3),
+            ("vehicle_launch", vehicle_launch, 5.0, 0.01),
+            ("excavator_swing", excavator_swing, 3.0, 0.01)]
+    return out
+
+
+def time_run(build, t_end, dt_out, linsolver, repeats):
+    from regmech.solvers.ida import choose_linsolver
+    times = []
+    for _ in range(repeats):
+        model = build()
+        c = model.compile()
+        t0 = time.perf_counter()
+        res = model.simulate(t_end, dt_out=dt_out, solver="ida", rtol=1e-6, linsolver=linsolver)
+        times.append(time.perf_counter() - t0)
+    kind, order = choose_linsolver(c)
+    band = c.__dict__.get("_band_ordering")
+    if band is None:
+        from regmech.compile.assembly import banded_ordering
+        band = banded_ordering(c.jac.pattern)
+    return statistics.median(times), c.N, band[1] + band[2] + 1, kind, res
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--quick", action="store_true")
+    args = p.parse_args(argv)
+    from regmech.bench.machine import machine_info, machine_line
+    rows = []
+    t_all = time.perf_counter()
+    for name, build, t_end, dt_out in scenes(args.quick):
+        times, ref = {}, None
+        for ls in SOLVERS:
+            wall, N, width, auto, res = time_run(build, t_end, dt_out, ls, args.repeats)
+            times[ls] = wall
+            sig = next(n for n in res.names if n.endswith((".v", ".w")))
+            if ref is None:
+                ref = res[sig]
+            else:   # the same answer whatever the linear solver (to the tolerance), compared at t_end
+                import numpy as np
+                dev = abs(float(res[sig][-1] - ref[-1])) / max(float(np.ptp(ref)), 1e-300)
+                if dev > 1e-3:
+                    print(f"warning: {name} {ls}: {sig} differs by {dev:.1e} of its range", file=sys.stderr)
+        best = min(times, key=times.get)
+        rows.append((name, N, width, auto, times, best))
+        print(f"{name}: N={N} band={width} auto={auto} " +
+              " ".join(f"{k}={v * 1e3:.1f}ms" for k, v in times.items()), file=sys.stderr)
+    wall = time.perf_counter() - t_all
+    lines = ["# IDA's linear solver: dense, band or sparse", "",
+             f"Machine: {machine_line(machine_info())}. Command: `python benchmarks/bench_linsolver.py"
+             f"{' --quick' if args.quick else ''}`; median of {args.repeats} runs per cell (compile excluded), "
+             f"rtol 1e-6, OPENBLAS_NUM_THREADS=1; total {wall / 60:.1f} min.", "",
+             "N: unknowns of the index-1 DAE; band: lband + uband + 1 after reverse Cuthill-McKee; "
+             "auto: what `choose_linsolver` picks (dense up to N = 60, band up to a width of 40, dense again up to N = 400 for wider coupling, sparse beyond).", "",
+             "| scene | N | band | auto | dense | band | sparse | fastest | auto / fastest |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for name, N, width, auto, times, best in rows:
+        cells = [f"{times[s] * 1e3:.1f} ms" for s in SOLVERS]
+        lines.append(f"| {name} | {N} | {width} | {auto} | " + " | ".join(cells) +
+                     f" | {best} | {times[auto] / times[best]:.2f} |")
+    OUT.write_text("\n".join(lines) + "\n")
+    print(f"-> {OUT}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,41 @@
+"""IDA's choice of linear solver (regmech.solvers.ida.choose_linsolver) and agreement of the three."""
+
+import numpy as np
+
+import regmech as rm
+from regmech.components import Damper, Fixed, Inertia, SpringDamper, Torque
+from regmech.library import train
+from regmech.solvers.ida import choose_linsolver
+
+
+def _hub(n):
+    """A hub joined to n satellites: no ordering gives a narrow band."""
+    m = rm.Model(f"hub_{n}")
+    h = m.add(Inertia("hub", J=1.0))
+    g = m.add(Fixed("ground"))
+    tq = m.add(Torque("drive", tau=rm.signals.Step(height=10.0, start_time=0.1)))
+    m.connect(tq.flange, h.flange_a)
+    for i in range(n):
+        s = m.add(Inertia(f"sat{i}", J=0.1 * (1 + i % 7)))
+        k = m.add(SpringDamper(f"link{i}", c=1e3 * (1 + i % 5), d=1.0))
+        d = m.add(Damper(f"drag{i}", d=0.5))
+        m.connect(h.flange_b, k.flange_a)
+        m.connect(k.flange_b, s.flange_a)
+        m.connect(s.flange_b, d.flange_a)
+        m.connect(d.flange_b, g.flange)
+    return m
+
+
+def test_small_dense_narrow_band_wide_dense_then_sparse():
+    assert choose_linsolver(train(10, c_r=0.0).compile())[0] == "dense"
+    assert choose_linsolver(train(100, c_r=0.0).compile())[0] == "band"
+    assert choose_linsolver(_hub(40).compile())[0] == "dense"      # N = 82, bandwidth 2N - 1
+    assert choose_linsolver(_hub(250).compile())[0] == "sparse"    # N = 502
+
+
+def test_the_three_linear_solvers_give_the_same_answer():
+    model = _hub(30)
+    runs = {ls: model.simulate(1.0, dt_out=0.01, rtol=1e-8, linsolver=ls) for ls in ("dense", "band", "sparse")}
+    ref = runs["dense"]["sat7.w"]
+    for ls in ("band", "sparse"):
+        assert np.max(np.abs(runs[ls]["sat7.w"] - ref)) < 1e-5 * np.ptp(ref)
