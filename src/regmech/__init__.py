@@ -7,7 +7,7 @@
 
 from . import signals
 from .component import Body, Component, Device, Ground, Param, Subsystem
-from .errors import (ChatteringError, ModelError, ParameterError, RegmechError, RegularityError,
+from .errors import (AccuracyError, ChatteringError, ModelError, ParameterError, RegmechError, RegularityError,
                      RegularityWarning, SimulationError, StructureError, UnknownFlangeError)
 from .model import Model
 from .result import Event, Result, Stats
@@ -19,7 +19,7 @@ __all__ = [
     "Model", "Scene", "Result", "Event", "Stats", "signals",
     "Component", "Body", "Ground", "Device", "Param", "Subsystem",
     "RegmechError", "ParameterError", "ModelError", "UnknownFlangeError", "RegularityError",
-    "StructureError", "SimulationError", "ChatteringError", "RegularityWarning",
+    "StructureError", "SimulationError", "ChatteringError", "AccuracyError", "RegularityWarning",
 ]
 
 

@@ -37,5 +37,10 @@ class ChatteringError(SimulationError):
     """A variable-structure device changed mode too often in a short time."""
 
 
+class AccuracyError(SimulationError):
+    """A fixed-step run whose estimated global error exceeds its tolerance ``tol``
+    (``regmech.solvers.richardson``): the answer would be wrong, so none is returned."""
+
+
 class RegularityWarning(UserWarning):
     """Legal but questionable model (e.g. a stretched spectrum, Position 2)."""

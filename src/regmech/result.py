@@ -3,7 +3,8 @@
 ``res.t`` (output times; an event instant appears twice, before and after),
 ``res["J1.w"]`` any named signal (``res.names``), ``res.events`` the mode
 changes, ``res.stats`` (solver, wall time, steps, residual/RHS calls,
-Jacobians, ...), ``res.to_dataframe()``, ``res.to_csv(path)``, ``res.plot()``.
+Jacobians, the estimated global error of a fixed-step run, ...),
+``res.to_dataframe()``, ``res.to_csv(path)``, ``res.plot()``.
 """
 
 from __future__ import annotations
@@ -42,12 +43,17 @@ class Stats:
     jac_calls: int = 0
     segments: int = 0
     events: int = 0
+    #: fixed-step solvers (euler, rk4, abm, expm) with ``tol`` set: the estimated global error of the run,
+    #: max over the ODE-form states and output instants of |error| / (range of the states of that kind)
+    #: (``regmech.solvers.richardson``; which state and when in ``extra``); None: not estimated
+    error_estimate: float | None = None
     extra: dict = field(default_factory=dict)
 
     def __str__(self):
         steps = "? steps" if self.steps is None else f"{self.steps} steps"
+        est = "" if self.error_estimate is None else f", estimated error {self.error_estimate:.2g}"
         return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms, {steps}, {self.rhs_calls} residual/RHS "
-                f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events")
+                f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}")
 
 
 class Result:

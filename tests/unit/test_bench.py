@@ -280,7 +280,13 @@ def test_hard_case_verdicts_pass_refuse_inaccurate_and_budget():
     assert ok.verdict == "pass" and ok.value < ok.tolerance
     refused = run_case(get_case("square_wave_throttle"), "expm", CI, limit=None)
     assert refused.verdict == "refuse" and "linear" in refused.reason
+    # euler at h = 0.01 s is far off: its error estimate (tol = ANSWER_TOL) refuses it, naming the component;
+    # the bare method (tol=None) returns the wrong answer, which the check reports
     rough = run_case(get_case("gear_1_1000"), "euler", CI, limit=None)
+    assert rough.verdict == "refuse" and rough.reason.startswith("AccuracyError") and "'motor'" in rough.reason
+    bare = get_case("gear_1_1000")
+    bare.options = lambda solver, size: {"h": 0.01, "tol": None}
+    rough = run_case(bare, "euler", CI, limit=None)
     assert rough.verdict == "fail" and rough.reason.startswith("inaccurate (no error control)")
     crawling = run_case(get_case("near_rigid_shaft"), "scipy:RK45", CI, limit=None, max_calls=2000)
     assert crawling.verdict == "fail" and "work budget" in crawling.reason

@@ -13,8 +13,8 @@ A run ends in one of these *verdicts*:
 * ``refuse``: it stopped with a regmech error whose message names a
   component of the model (a clear refusal is an acceptable outcome);
 * ``fail``: anything else, with the reason -- a wrong answer beyond the
-  tolerance (``inaccurate`` for fixed-step methods, which have no error
-  control), a NaN, a regmech error that names no component, another
+  tolerance (``inaccurate`` for fixed-step methods, run with ``tol`` =
+  ``ANSWER_TOL`` for their Richardson error estimate), a NaN, a regmech error that names no component, another
   exception (a bug), or the time limit (a run that would hang).
 """
 
@@ -55,13 +55,16 @@ class HardCase:
     t_end: dict
     dt_out: dict
     rtol: float = 1e-8
-    h: dict = field(default_factory=dict)      # size -> fixed step [s] (euler, rk4, abm, expm)
+    h: dict = field(default_factory=dict)      # size -> fixed step [s] (euler, rk4, abm, expm), run with
+    #                                            tol=ANSWER_TOL: each meets the answer tolerance or refuses
     note: str = ""
     limits: dict = field(default_factory=dict)  # size -> wall-clock limit per run [s], overriding the default
 
     def options(self, solver: str, size: str) -> dict:
         if solver in FIXED_STEP:
-            return {"h": self.h.get(size, self.dt_out[size])}
+            # the Richardson error estimate (regmech.solvers.richardson) at the answer tolerance: a fixed-step
+            # run either meets it or stops with AccuracyError naming the worst component
+            return {"h": self.h.get(size, self.dt_out[size]), "tol": ANSWER_TOL}
         return {"rtol": self.rtol}
 
 
@@ -446,11 +449,14 @@ def run_case(case: HardCase, solver: str, size: str = CI, limit: float | None = 
         out.reason = f"result could not be checked: {type(exc).__name__}: {first_line(exc)}"
         return out
     out.value, out.tolerance, out.what = chk.value, chk.tolerance, chk.what
-    setting = ", ".join(f"{k}={v:g}" for k, v in opts.items())
+    setting = ", ".join(f"{k}={v:g}" if v is not None else f"{k}=None" for k, v in opts.items())
     if chk.ok:
         out.verdict, out.reason = "pass", f"{setting}: {chk.what} {chk.value:.1e} <= {chk.tolerance:g}; {chk.detail}"
     else:
-        label = "inaccurate (no error control)" if solver in FIXED_STEP else "wrong answer"
+        if solver in FIXED_STEP:     # with tol: the Richardson estimate passed the run, the check did not
+            label = "inaccurate (no error control)" if opts.get("tol") is None else "inaccurate (error underestimated)"
+        else:
+            label = "wrong answer"
         shown = "NaN" if not math.isfinite(chk.value) else f"{chk.value:.1e}"
         out.reason = f"{label} at {setting}: {chk.what} {shown} > {chk.tolerance:g}; {chk.detail}"
     return out
@@ -488,8 +494,8 @@ def hard_markdown(cases, outcomes, solvers, size, machine: dict, limit: float, w
              "Each case is solved by every solver at the stated setting (adaptive solvers at `rtol`, atol = "
              "rtol/100; fixed-step solvers at the step `h`) and checked against an analytic or independent "
              "answer. **pass**: within the stated tolerance; **refuse**: stopped with a regmech error that names "
-             "a component (acceptable); **fail**: a wrong answer (`inaccurate` for fixed-step methods, which "
-             "have no error control), a NaN, an error naming no component, a non-regmech exception, or the "
+             "a component (acceptable); **fail**: a wrong answer (`inaccurate` for fixed-step methods, run "
+             "with `tol` = the answer tolerance of their Richardson error estimate), a NaN, an error naming no component, a non-regmech exception, or the "
              "time limit (a run that would hang). The CI-sized versions run in `tests/hard/`.", ""]
     by = {(o.case, o.solver): o for o in outcomes}
     mark = {"pass": "pass", "refuse": "refuse", "fail": "**FAIL**"}

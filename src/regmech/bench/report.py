@@ -296,7 +296,8 @@ def write_report(run, out: Path) -> Path:
              "largest switch-time difference of the mode changes matched by device, old and new mode "
              "(`switch err`, with the count of unmatched changes). Definitions: `regmech.bench.metrics`. "
              "Adaptive solvers run at rtol on a ladder (atol = rtol/100); fixed-step solvers (euler, rk4, "
-             "abm, expm) on a ladder of steps h.", ""]
+             "abm, expm) on a ladder of steps h with `tol=None`: the bare method, timed without the companion "
+             "run at 2h of their error estimate (which adds about half a run; `regmech.solvers.richardson`).", ""]
     lines += summary_markdown(run.scenes, run.records)
     cc_ref = run.references.get("coupled_clutches")
     lines += issue3_markdown(run.records, cc_ref)

@@ -22,7 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-#: solvers that take a fixed step ``h`` instead of a tolerance
+#: solvers that take a fixed step ``h`` instead of a tolerance (and check their error by a companion run at 2h
+#: unless ``tol=None``: the work-precision runs pass None to time the bare method, ``runner.Setting``)
 FIXED_STEP = ("euler", "rk4", "abm", "expm")
 #: tolerance ladders of the adaptive solvers (rtol; atol = rtol * 1e-2, the solvers' default)
 FULL_TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)

@@ -28,6 +28,17 @@ the solution grow geometrically. The driver stops such a run as soon as the
 state outgrows the scale its start and its forcing explain by more than
 ``max_growth`` (option, default 1e4; see ``regmech.solvers.divergence``)
 with a ``SimulationError`` that gives ``rho`` and the largest stable step.
+
+Error control (option ``tol``, default 1e-3): these methods do not control
+their error step by step, so after the run a companion run at step 2h
+estimates its global error by Richardson extrapolation
+(``regmech.solvers.richardson``; order p = 1 for ``euler``, 4 for ``rk4``
+and ``abm``). Every ODE-form state (positions, speeds, internal states)
+must have an estimated error at most ``tol`` times the largest range of the
+states of its kind; otherwise the run raises ``AccuracyError`` naming the
+worst signal and component and a step that meets ``tol``. The estimate is
+``res.stats.error_estimate``; the companion costs about half the main run.
+``tol=None`` skips it (the bare method, as the benchmarks time it).
 """
 
 from __future__ import annotations
@@ -39,19 +50,27 @@ import numpy as np
 from ..errors import ParameterError
 from . import register
 from .divergence import MAX_GROWTH, check_max_growth
-from .ode_driver import KnotClock, Stepper, hermite, simulate_ode
+from .ode_driver import KnotClock, Stepper, hermite
+from .richardson import DEFAULT_TOL, check_tol, simulate_fixed_step
 
 
 class FixedStepper(Stepper):
-    """Equal steps of at most ``h`` landing exactly on every knot; subclasses supply ``advance``."""
+    """Equal steps of at most ``h`` landing exactly on every knot; subclasses supply ``advance``.
 
-    def __init__(self, problem, t0, u0, t_bound, knots, h):
+    ``clock``: the step sequence (``KnotClock``; the error estimate's companion
+    runs pass ``GroupedKnotClock`` for steps of exactly 2h).
+    """
+
+    #: convergence order p (for the error estimate)
+    order = 4
+
+    def __init__(self, problem, t0, u0, t_bound, knots, h, clock=KnotClock):
         self.problem = problem
         self.t = self.t_old = float(t0)
         self.u = np.array(u0, float)
         self.g = problem.rhs(self.t, self.u)
         self.u_old, self.g_old = self.u, self.g
-        self.clock = KnotClock(t0, knots, t_bound, h)
+        self.clock = clock(t0, knots, t_bound, h)
         self.fixed_step = float(h)
         self.nsteps = 0
         self.nrejected = 0
@@ -84,6 +103,7 @@ class FixedStepper(Stepper):
 
 class EulerStepper(FixedStepper):
     stability_bound = 2.0
+    order = 1
 
     @staticmethod
     def stability_function(z):
@@ -146,28 +166,37 @@ class ABMStepper(FixedStepper):
 
 def _fixed_step_solver(name, stepper_cls):
     @register(name)
-    def simulate_fixed(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, max_events=100000,
+    def simulate_fixed(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, tol=DEFAULT_TOL, max_events=100000,
                        chatter_window=None, chatter_count=50, max_growth=MAX_GROWTH, **unused):
         if unused:
-            raise ParameterError(f"solver '{name}' takes the options h (step, s), max_events, chatter_window, "
+            raise ParameterError(f"solver '{name}' takes the options h (step, s), tol, max_events, chatter_window, "
                                  f"chatter_count, max_growth; got unknown {sorted(unused)}")
         max_growth = check_max_growth(name, max_growth)
+        tol = check_tol(name, tol)
         step = dt_out if h is None else h
         if step is None:
             step = (t_end - t_start) / 500.0
         if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
             raise ParameterError(f"solver '{name}': the step h must be a positive number, got {h!r}")
 
-        def make(problem, t0, u0, t_bound, knots):
-            return stepper_cls(problem, t0, u0, t_bound, knots, step)
+        def make_stepper(clock, companion):
+            def make(problem, t0, u0, t_bound, knots):
+                return stepper_cls(problem, t0, u0, t_bound, knots, step, clock=clock)
+            return make
 
-        res = simulate_ode(model, name, make, t_start, t_end, dt_out, max_events=max_events,
-                           chatter_window=chatter_window, chatter_count=chatter_count, explicit=True,
-                           max_growth=max_growth)
-        res.stats.extra["h"] = float(step)
-        return res
+        def after_main(res):
+            res.stats.extra["h"] = float(step)
 
-    simulate_fixed.__doc__ = f"Fixed-step '{name}' on the ODE form (see regmech.solvers.explicit)."
+        return simulate_fixed_step(model, name, make_stepper, h=float(step), order=stepper_cls.order, tol=tol,
+                                   t_start=t_start, t_end=t_end, dt_out=dt_out, after_main=after_main,
+                                   max_events=max_events, chatter_window=chatter_window,
+                                   chatter_count=chatter_count, explicit=True, max_growth=max_growth)
+
+    simulate_fixed.__doc__ = (f"Fixed-step '{name}' on the ODE form (see regmech.solvers.explicit); options h [s] "
+                              f"(default dt_out), tol (default {DEFAULT_TOL:g}: bound of the Richardson estimate of "
+                              f"the global error relative to the range of each kind of state, AccuracyError beyond "
+                              f"it; None: no estimate, see regmech.solvers.richardson), max_events, chatter_window, "
+                              f"chatter_count, max_growth.")
     simulate_fixed.__name__ = f"simulate_{name}"
     return simulate_fixed
 

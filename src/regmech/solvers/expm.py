@@ -64,12 +64,33 @@ the step (the D's recomputed for the sub-step), then runs the mode logic
 
 Options: ``h`` [s] the step (default ``dt_out``; output instants,
 breakpoints of the signals and ``t_end`` are hit exactly, cutting an
-interval into equal steps), ``order_p`` (1..3, default 2), ``taylor_r``
-(default: the cheapest order for ``tol``), ``tol`` (target of the
-truncation error model, default the unit round-off), ``sparse`` (None:
-automatic), ``drop_tol`` (sparse path), ``scaling`` ("energy" or
-"frequency"; default energy on the dense path), ``max_events``,
-``chatter_window``, ``chatter_count``.
+interval into equal steps), ``order_p`` (1..3, default 2), ``tol``
+(default 1e-3: bound of the estimated global error relative to the range
+of each kind of state, see below; None: no estimate), ``taylor_r``
+(default: the cheapest order for ``taylor_tol``), ``taylor_tol`` (target
+of the truncation error model of the matrix exponential, default the unit
+round-off), ``sparse`` (None: automatic), ``drop_tol`` (sparse path),
+``scaling`` ("energy" or "frequency"; default energy on the dense path),
+``max_events``, ``chatter_window``, ``chatter_count``.
+
+Error estimate (``regmech.solvers.richardson``): a companion run at 2h
+gives ``E = |y_h - y_2h| / (2^p - 1)`` with ``p = order_p``, the
+guaranteed order of holding the inputs by a polynomial of degree
+``order_p - 1`` over a step (slow forcing converges faster and piecewise
+polynomial forcing is exact, so this errs on the safe side). The round-off
+floor below does not shrink with h, and most of it does not even depend on
+h: it comes from the set-up of the scaled matrices (the slow modes of a
+stretched spectrum are resolved only to ``(w_max/w_min)^2 * 1e-16``), so
+two runs with the same set-up share it and their difference cannot show
+it. The companion runs therefore use the *other* scaling on the dense path
+("frequency" when the main run used "energy", and the reverse), whose
+round-off differs; their own mode systems (one more set-up per mode set);
+the sparse path has one scaling only (its floor is 1e-12..1e-11 on the
+library's chains). A floor that dominates the estimate does not shrink
+between the runs at 2h and 4h: the refusal then says so and suggests an
+implicit adaptive solver instead of a smaller step (measured on the hard
+case ``stretched_1e7``: error 1.7e-3 of the range at every step from 0.005
+to 0.02 s, refused).
 
 Round-off floor (measured): the D's are accurate to about ``nu h * 1e-16``
 (the data of A are rounded, so exp(A h) is defined only to that level), but
@@ -82,6 +103,7 @@ stays at 1e-12..1e-11 for 10, 100 and 1000 cars (benchmarks/results/expm.md).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import OrderedDict
 
@@ -92,7 +114,8 @@ import scipy.sparse as sp
 from ..errors import ParameterError, SimulationError, StructureError
 from . import register
 from .expm_coefficients import DROP_TOL, UNIT_ROUNDOFF, coefficients, fit_matrix, fit_nodes
-from .ode_driver import KnotClock, Stepper, simulate_ode
+from .ode_driver import KnotClock, Stepper
+from .richardson import DEFAULT_TOL, check_tol, simulate_fixed_step
 
 #: independent coordinates from which E is kept sparse (when the mass matrix is diagonal)
 SPARSE_FROM = 200
@@ -102,6 +125,33 @@ DENSE_MAPS_UPTO = 64
 CACHE_SIZE = 8
 #: Gauss-Legendre points for integrating a prescribed speed to a displacement
 SPEED_QUADRATURE = 8
+#: their nodes and weights on [-1, 1] (computed once: numpy's leggauss costs ~0.1 ms a call)
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(SPEED_QUADRATURE)
+_GL_NODES01 = 0.5 * (_GL_X + 1.0)
+
+
+@functools.lru_cache(maxsize=None)
+def speed_weights(p: int) -> np.ndarray:
+    """``W[i, k] = int_0^sigma_i L_k(s) ds`` for ``sigma = (fit_nodes(p), 1)``.
+
+    ``L_k`` is the Lagrange polynomial of the ``SPEED_QUADRATURE`` Gauss-Legendre
+    nodes on [0, 1], so with the prescribed speeds ``g'`` sampled once per step
+    at those nodes, ``h W @ g'`` gives their displacements from the step start
+    to each fit node and to the step end (exact for speeds of degree < 8 on a
+    step; the last row is the Gauss-Legendre rule itself). This replaces one
+    8-point quadrature per fit node and one per step (24 speed evaluations per
+    step at p = 2) by 8 evaluations.
+    """
+    xi = _GL_NODES01
+    sigmas = np.append(fit_nodes(p), 1.0)
+    out = np.zeros((len(sigmas), len(xi)))
+    for i, sg in enumerate(sigmas):
+        s = sg * xi                          # the Gauss-Legendre nodes on [0, sigma]: exact for degree 7
+        for k in range(len(xi)):
+            others = np.delete(np.arange(len(xi)), k)
+            lk = np.prod((s[:, None] - xi[others]) / (xi[k] - xi[others]), axis=1)
+            out[i, k] = sg * float(np.sum(0.5 * _GL_W * lk))
+    return out
 
 
 # ===================================================================== linearity
@@ -492,7 +542,7 @@ class ModeSystem:
         import time
         t0 = time.perf_counter()
         opts = self.options
-        coef = coefficients(self.A, self.Win, h, self.p, nu=self.nu, tol=opts["tol"], r=opts["taylor_r"],
+        coef = coefficients(self.A, self.Win, h, self.p, nu=self.nu, tol=opts["taylor_tol"], r=opts["taylor_r"],
                             drop_tol=opts["drop_tol"])
         prop = Propagator(coef, self.Vinv)
         self.setups += 1
@@ -538,7 +588,7 @@ class Propagator:
 class ExpmStepper(Stepper):
     """Fixed steps of at most h on one segment, exact for the fitted forcing."""
 
-    def __init__(self, engine, problem, t0, u0, t_bound, knots):
+    def __init__(self, engine, problem, t0, u0, t_bound, knots, h, clock=KnotClock):
         self.engine = engine
         c = self.c = problem.c
         modes = problem.modes
@@ -562,7 +612,8 @@ class ExpmStepper(Stepper):
         self.dg_speed = self.dg_speed_old = self._no_speed
         self.u = np.array(u0, float)
         self.u_old = self.u
-        self.clock = KnotClock(t0, knots, t_bound, engine.h)
+        self.clock = clock(t0, knots, t_bound, h)
+        self.fixed_step = float(h)
         self.nsteps = self.nrejected = self.njev = 0
         self._step_beta = None
         self._interp = 0
@@ -573,17 +624,21 @@ class ExpmStepper(Stepper):
         fo = self.ms.forcing
         if not self.n_speed or t_to == t_from:
             return self._no_speed
-        x, wq = np.polynomial.legendre.leggauss(SPEED_QUADRATURE)
         half = 0.5 * (t_to - t_from)
-        return half * sum(wi * fo.speed_values(t_from + half * (xi + 1.0)) for xi, wi in zip(x, wq))
+        return half * sum(wi * fo.speed_values(t_from + half * (xi + 1.0)) for xi, wi in zip(_GL_X, _GL_W))
 
-    def _node_values(self, t, h):
+    def _step_displacements(self, t, h):
+        """Displacements of the prescribed speeds from t to each fit node and to t + h ((p + 1) x n_speed)."""
+        fo = self.ms.forcing
+        speeds = np.array([fo.speed_values(t + h * x) for x in _GL_NODES01])
+        return h * (speed_weights(self.ms.p) @ speeds)
+
+    def _node_values(self, t, h, disp):
         ms, fo = self.ms, self.ms.forcing
         vals = np.empty((ms.p, fo.size))
         for i, s in enumerate(ms.nodes):
-            tn = t + s * h
-            dgs = self.dg_speed + self._speed_displacement(t, tn)
-            vals[i] = fo.values(tn, self.seg, dgs)
+            dgs = self.dg_speed + disp[i] if self.n_speed else self._no_speed
+            vals[i] = fo.values(t + s * h, self.seg, dgs)
         return vals
 
     def _to_u(self, t, q, dg_speed):
@@ -602,9 +657,10 @@ class ExpmStepper(Stepper):
     def step(self):
         h, t_new = self.clock.next_step(self.t)
         prop = self.ms.propagator(h)
-        vals = self._node_values(self.t, h)
+        disp = self._step_displacements(self.t, h) if self.n_speed else None
+        vals = self._node_values(self.t, h, disp)
         q_new = prop.step(self.q, vals)
-        dg_new = self.dg_speed + self._speed_displacement(self.t, t_new)
+        dg_new = self.dg_speed + disp[-1] if self.n_speed else self._no_speed
         self.t_old, self.q_old, self.u_old, self.dg_speed_old = self.t, self.q, self.u, self.dg_speed
         self._step_h, self._step_beta = h, self.ms.Vinv @ vals
         self.t, self.q, self.dg_speed = t_new, q_new, dg_new
@@ -629,11 +685,11 @@ class ExpmStepper(Stepper):
 
 
 class ExpmEngine:
-    """Mode systems (cached per mode set) and options of one simulation."""
+    """Mode systems (cached per mode set) and options of one simulation (shared by the error estimate's
+    companion runs, so their step matrices are computed once per mode set and step length)."""
 
-    def __init__(self, c, h, options):
+    def __init__(self, c, options):
         self.c = c
-        self.h = h
         self.options = options
         self.systems: dict = {}
 
@@ -644,6 +700,15 @@ class ExpmEngine:
             x, v, _ = self.c.ode_lift(t, u, modes)
             ms = self.systems[key] = ModeSystem(self.c, modes, t, x, v, self.options)
         return ms
+
+    def other_scaling(self) -> str | None:
+        """The scaling of the error estimate's companion runs: on the dense path the one this engine did not
+        use, so that the round-off of the set-up (which does not shrink with h) differs between the runs and
+        shows in their difference; the sparse path has the frequency scaling only."""
+        ms = next(iter(self.systems.values()), None)
+        if ms is None or ms.sparse:
+            return self.options["scaling"]
+        return "frequency" if ms.scaling == "energy" else "energy"
 
     def stats(self) -> dict:
         out = {"mode_sets": len(self.systems),
@@ -657,10 +722,11 @@ class ExpmEngine:
         return out
 
 
-def _check_options(h, order_p, taylor_r, tol, drop_tol, unused):
+def _check_options(h, order_p, taylor_r, taylor_tol, drop_tol, unused):
     if unused:
-        raise ParameterError(f"solver 'expm' takes the options h, order_p, taylor_r, tol, sparse, drop_tol, "
-                             f"scaling, max_events, chatter_window, chatter_count; got unknown {sorted(unused)}")
+        raise ParameterError(f"solver 'expm' takes the options h, order_p, tol, taylor_r, taylor_tol, sparse, "
+                             f"drop_tol, scaling, max_events, chatter_window, chatter_count; got unknown "
+                             f"{sorted(unused)}")
     if h is not None and not (isinstance(h, (int, float)) and not isinstance(h, bool) and math.isfinite(h) and h > 0):
         raise ParameterError(f"solver 'expm': the step h must be a positive number [s], got {h!r}")
     if order_p not in (1, 2, 3) or isinstance(order_p, bool):
@@ -669,18 +735,23 @@ def _check_options(h, order_p, taylor_r, tol, drop_tol, unused):
     if taylor_r is not None and (not isinstance(taylor_r, int) or isinstance(taylor_r, bool)
                                  or not 1 <= taylor_r <= 18):
         raise ParameterError(f"solver 'expm': taylor_r must be an integer 1..18 or None, got {taylor_r!r}")
-    if not (isinstance(tol, (int, float)) and 0 < tol < 1):
-        raise ParameterError(f"solver 'expm': tol must lie in (0, 1), got {tol!r}")
+    if not (isinstance(taylor_tol, (int, float)) and 0 < taylor_tol < 1):
+        raise ParameterError(f"solver 'expm': taylor_tol must lie in (0, 1), got {taylor_tol!r}")
     if not (isinstance(drop_tol, (int, float)) and 0 <= drop_tol < 1e-6):
         raise ParameterError(f"solver 'expm': drop_tol must lie in [0, 1e-6), got {drop_tol!r}")
 
 
 @register("expm")
-def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2, taylor_r=None,
-                  tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, scaling=None, max_events=100000,
+def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2, tol=DEFAULT_TOL, taylor_r=None,
+                  taylor_tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, scaling=None, max_events=100000,
                   chatter_window=None, chatter_count=50, **unused):
-    """The step-doubling matrix exponential integrator for linear models (see regmech.solvers.expm)."""
-    _check_options(h, order_p, taylor_r, tol, drop_tol, unused)
+    """The step-doubling matrix exponential integrator for linear models (see regmech.solvers.expm).
+
+    ``tol`` (default 1e-3): bound of the Richardson estimate of the global error relative to the range of
+    each kind of state (``AccuracyError`` beyond it; None: no estimate; see regmech.solvers.richardson).
+    """
+    _check_options(h, order_p, taylor_r, taylor_tol, drop_tol, unused)
+    tol = check_tol("expm", tol)
     if scaling not in (None, "energy", "frequency"):
         raise ParameterError(f"solver 'expm': scaling must be None, 'energy' or 'frequency', got {scaling!r}")
     c = model.compile()
@@ -689,19 +760,28 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
     step = h
     if step is None:
         step = dt_out if dt_out is not None else ((t_end - t_start) / 500.0 if t_end > t_start else 1.0)
-    options = {"order_p": order_p, "taylor_r": taylor_r, "tol": float(tol), "sparse": sparse,
+    options = {"order_p": order_p, "taylor_r": taylor_r, "taylor_tol": float(taylor_tol), "sparse": sparse,
                "drop_tol": float(drop_tol), "t_end": float(t_end), "scaling": scaling}
-    engine = ExpmEngine(c, float(step), options)
+    engine = ExpmEngine(c, options)
+    engines = {False: engine}
 
-    def make(problem, t0, u0, t_bound, knots):
-        return ExpmStepper(engine, problem, t0, u0, t_bound, knots)
+    def make_stepper(clock, companion):
+        if companion and True not in engines:
+            engines[True] = ExpmEngine(c, {**options, "scaling": engine.other_scaling()})
+        used = engines[companion]
 
-    res = simulate_ode(model, "expm", make, t_start, t_end, dt_out, max_events=max_events,
-                       chatter_window=chatter_window, chatter_count=chatter_count)
-    res.stats.extra.update(engine.stats())
-    res.stats.extra["h"] = float(step)
-    res.stats.extra["order_p"] = order_p
-    return res
+        def make(problem, t0, u0, t_bound, knots):
+            return ExpmStepper(used, problem, t0, u0, t_bound, knots, float(step), clock=clock)
+        return make
+
+    def after_main(res):
+        res.stats.extra.update(engine.stats())
+        res.stats.extra["h"] = float(step)
+        res.stats.extra["order_p"] = order_p
+
+    return simulate_fixed_step(model, "expm", make_stepper, h=float(step), order=order_p, tol=tol, t_start=t_start,
+                               t_end=t_end, dt_out=dt_out, after_main=after_main, max_events=max_events,
+                               chatter_window=chatter_window, chatter_count=chatter_count)
 
 
 __all__ = ["simulate_expm", "check_linear", "nonlinear_components", "ModeSystem", "Propagator", "Forcing"]

@@ -266,6 +266,61 @@ class KnotClock:
         return t_new - t, t_new
 
 
+class GroupedKnotClock:
+    """The steps of ``KnotClock(t0, knots, t_bound, h)`` merged ``factor`` at a time (the companion runs of
+    ``regmech.solvers.richardson``: steps of exactly 2h or 4h where the main run takes h).
+
+    ``KnotClock`` cuts each knot interval of length L into ``n = ceil(L / h)``
+    equal steps; when h is not much below the output interval (``h = dt_out``:
+    one step per interval) a clock of step 2h would take the same steps. This
+    clock groups consecutive knot intervals until their step counts add up to
+    a multiple of ``factor`` and takes ``sum(n) / factor`` equal steps over
+    the group: on an evenly spaced grid these are exactly ``factor`` main steps
+    long and land on every ``factor``-th main step. Only the instants that end
+    a group are hit exactly (the others are interpolated); a group cut short
+    by ``t_bound`` takes ``ceil(sum(n) / factor)`` steps, so ``ratio`` of the
+    whole run can fall below ``factor`` on short segments.
+    """
+
+    def __init__(self, t0, knots, t_bound, h_max, factor=2):
+        knots = np.asarray(knots, float)
+        knots = knots[knots > t0]
+        if not len(knots) or knots[-1] < t_bound:
+            knots = np.append(knots, float(t_bound))
+        spans = np.diff(np.concatenate([[float(t0)], knots]))
+        counts = np.maximum(1, np.ceil(spans / float(h_max) * (1 - 1e-12))).astype(int)
+        self.plan: list[tuple[float, int]] = []       # (group end, steps over the group)
+        acc = 0
+        for end, n in zip(knots, counts):
+            acc += int(n)
+            if acc % factor == 0 or end == knots[-1]:
+                self.plan.append((float(end), max(1, math.ceil(acc / factor))))
+                acc = 0
+        self.main_steps = int(counts.sum())
+        self._g = 0
+        self._n_left = 0
+        self._i = 0
+        self._t_from = float(t0)
+        self._h = 0.0
+
+    @property
+    def knots(self) -> np.ndarray:
+        """The instants this clock lands on exactly."""
+        return np.array([end for end, _ in self.plan])
+
+    def next_step(self, t):
+        """(h, t_new) of the next step from t."""
+        if self._n_left == 0:
+            while self._g < len(self.plan) - 1 and self.plan[self._g][0] <= t:
+                self._g += 1
+            target, n = self.plan[self._g]
+            self._t_from, self._target, self._h, self._n_left, self._i = t, target, (target - t) / n, n, 0
+        self._i += 1
+        self._n_left -= 1
+        t_new = self._target if self._n_left == 0 else self._t_from + self._i * self._h
+        return t_new - t, t_new
+
+
 class Stepper:
     """What a solver supplies to the driver.
 
@@ -308,6 +363,48 @@ class Stepper:
 
 
 # ------------------------------------------------------------------- recording
+class GridProbe:
+    """The ODE state ``u`` at the instants of ``times`` that a run's steps land on exactly.
+
+    A fixed-step run and its companion at 2h (``regmech.solvers.richardson``)
+    are compared where both hold a value that no interpolant has touched. At
+    an instant met twice (a signal breakpoint, an event) the first value, the
+    left limit, is kept.
+    """
+
+    def __init__(self, times):
+        self._index = {float(t): k for k, t in enumerate(np.asarray(times, float))}
+        self.samples: dict[float, np.ndarray] = {}
+
+    def add(self, t, u):
+        t = float(t)
+        if t in self._index and t not in self.samples:
+            self.samples[t] = np.array(u, float)
+
+
+class _Sink:
+    """Where a run's output goes: the ``Recorder`` of the result and/or a ``GridProbe``.
+
+    A companion run (``record=False``) has no recorder: its grid rows cost
+    nothing beyond copying u where the probe wants it (no accelerations are
+    solved for output); event rows still cost what the mode logic needs.
+    """
+
+    def __init__(self, c, rec, probe):
+        self.c, self.rec, self.probe = c, rec, probe
+
+    def row(self, t, y, yp, modes, left=False):
+        if self.rec is not None:
+            self.rec.add(t, y, yp, modes, left=left)
+
+    def state(self, t, u, modes, exact, left=False):
+        """A row from the ODE state; ``exact``: u is a step's end value, not interpolated."""
+        if exact and self.probe is not None:
+            self.probe.add(t, u)
+        if self.rec is not None:
+            self.rec.add(t, *consistent_row(self.c, t, u, modes), modes, left=left)
+
+
 def consistent_row(c, t, u, modes):
     """Full ``(y, y')`` for the output from the ODE state.
 
@@ -480,7 +577,8 @@ def _few_steps_check(problem, stepper, name, t, u, t_end, growth, explicit):
 
 
 def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None, *, max_events=100000,
-                 chatter_window=None, chatter_count=50, explicit=False, max_growth=MAX_GROWTH):
+                 chatter_window=None, chatter_count=50, explicit=False, max_growth=MAX_GROWTH, probe=None,
+                 record=True):
     """Run ``model`` with the stepper factory of an ODE-form solver; returns a ``Result``.
 
     ``make_stepper(problem, t0, u0, t_bound, knots)`` builds a stepper for one
@@ -490,6 +588,11 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     state and forcing (``divergence.GrowthWatch``; None: only non-finite or
     beyond 1e100) stops with ``SimulationError``; ``explicit`` adds the
     spectral radius and the stable step to the message.
+
+    ``probe`` (a ``GridProbe``) collects the states at the output instants and
+    breakpoints that the steps hit exactly; with ``record=False`` (the
+    companion runs of ``richardson``) nothing is recorded and the run returns
+    its ``Stats`` only.
     """
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
     tc = time.perf_counter()
@@ -511,8 +614,11 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         y, yp = c.initial_y(t_start, modes)
     problem = OdeProblem(c, modes)
     u = c.ode_state(y)
-    rec = Recorder(c.mf)
-    rec.add(t_start, y, yp, modes)
+    rec = Recorder(c.mf) if record else None
+    out = _Sink(c, rec, probe)
+    out.row(t_start, y, yp, modes)
+    if probe is not None:
+        probe.add(t_start, u)
     watch = EventWatch(c, fr) if (fr and fr.n_events > 0) else None
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     growth = GrowthWatch(t_start, u, max_growth)
@@ -524,7 +630,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         inner = grid[(grid > t) & (grid < t_stop)]
         knots = np.append(inner, t_stop)
         if t < t_stop:
-            end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec, stats, extra, name,
+            end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name,
                                explicit, t_end)
             stats.segments += 1
         else:
@@ -532,7 +638,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         if end.crossed is not None:
             t, u = end.t, end.u
             y_ev, yp_ev = c.y_from_ode(t, u, modes)
-            rec.add(t, y_ev, yp_ev, modes)
+            out.row(t, y_ev, yp_ev, modes)
             crossed = np.zeros(fr.n_events, int)
             crossed[end.crossed] = -1
             y, yp, new_modes, changes = fr.settle(t, (y_ev, yp_ev), modes, crossed=crossed)
@@ -544,10 +650,10 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
                                       f"max_events or simplify the model")
             modes = new_modes
             u = c.ode_state(y)
-            rec.add(t, y, yp, modes)
+            out.row(t, y, yp, modes)
             continue
         t, u = t_stop, end.u
-        rec.add(t, *consistent_row(c, t, u, modes), modes, left=True)
+        out.state(t, u, modes, exact=True, left=True)
         if t >= t_end:
             break
         t_stop = next(stop_iter)
@@ -560,9 +666,9 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
                 guard.record(t, comp)
             modes = new_modes
             u = c.ode_state(y)
-        else:
+        elif rec is not None:
             y, yp = consistent_row(c, t, u, modes)
-        rec.add(t, y, yp, modes)
+        out.row(t, y, yp, modes)
     stats.wall_time = time.perf_counter() - t0
     stats.rhs_calls = problem.nfev
     stats.jac_calls += problem.njev
@@ -570,12 +676,14 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     extra["state_growth"] = growth.largest_ratio          # how close the run came to the divergence tests
     extra["roughness"] = growth.largest_roughness
     stats.extra.update(extra)
+    if rec is None:
+        return stats
     from ..compile.outputs import Trajectory
     T, Y, YP, L, MO = rec.arrays()
     return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
 
 
-def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec, stats, extra, name, explicit,
+def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name, explicit,
                  t_end):
     """Integrate one segment; record the grid points inside it; stop at a crossing or at ``t_stop``."""
     c, modes = problem.c, problem.modes
@@ -603,8 +711,9 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, rec,
                 tq = inner[k_next]
                 if t_hit is not None and tq == t_hit:
                     break                   # recorded as the event's "before" row
-                uq = stepper.u if tq == stepper.t else stepper.interpolate(tq)
-                rec.add(tq, *consistent_row(c, tq, uq, modes), modes)
+                exact = tq == stepper.t
+                if exact or out.rec is not None:        # a companion run keeps exact step ends only
+                    out.state(tq, stepper.u if exact else stepper.interpolate(tq), modes, exact)
                 k_next += 1
             if t_hit is not None:
                 return SegmentEnd(t_hit, u_hit, k_hit)

@@ -1,0 +1,323 @@
+"""A-posteriori global error estimate of the fixed-step solvers (``euler``, ``rk4``, ``abm``, ``expm``).
+
+The fixed-step methods have no error control of their own, so a step that
+is too coarse gives a wrong answer without a word. Option ``tol`` (default
+``DEFAULT_TOL`` = 1e-3; ``None`` switches the check off) bounds the
+estimated global error of every ODE-form state (positions and speeds of the
+independent coordinates, internal device states) by Richardson
+extrapolation against a *companion run*:
+
+* after the main run at step h, the same model is run again with steps of
+  exactly 2h (``ode_driver.GroupedKnotClock``: pairs of the main steps,
+  landing on every other output instant when h >= dt_out), with the same
+  time events and the same stick/slip logic (events located anew: a switch
+  time that moves with the step is part of the error and counts);
+* at the instants both runs hit exactly (output instants, breakpoints), for
+  a method of order p, ``y_2h - y_h ~ (2^p - 1) C h^p``, so the error of
+  the main run is estimated as
+
+      E_i(t) = |y_h,i(t) - y_2h,i(t)| / (r^p - 1),     r = min(2, steps(h) / steps(2h))
+
+  (r < 2 only where segments between events are too short for a step of
+  2h, which makes E larger, i.e. conservative);
+* each state is measured against the largest range over the run of the
+  states of its *kind* (angles, angular speeds, positions, speeds, each
+  kind of internal state): the measure of the hard-case checks
+  (``regmech.bench.hard``). A state that hardly moves is thus not held to
+  its own tiny range (round-off alone would exceed it); a kind that does
+  not move at all is measured against ``MAGNITUDE_FLOOR`` times its largest
+  value, and at least ``ABSOLUTE_FLOOR`` (in the state's SI unit).
+
+``stats.error_estimate`` is ``max_i,t E_i(t) / scale_i``; when it exceeds
+``tol`` the run raises ``AccuracyError`` naming the worst state's signal
+and component, with a step that meets ``tol``:
+``h * 0.8 * (tol / E)^(1/p)`` (h the step actually taken: a requested step
+longer than the output interval is shortened to it). To tell a truncation error from a floor that
+a smaller step does not lower (round-off of ``expm`` on a stretched
+spectrum, a discontinuity the steps do not resolve), a refusal first runs a
+third, 4h run: when ``|y_2h - y_4h|`` is not at least sqrt(2) times
+``|y_h - y_2h|`` the error does not shrink with h and the message says so and
+suggests an implicit adaptive solver instead; when it shrinks more slowly
+than h^p, the observed order is used for the step suggestion.
+
+Orders p: ``euler`` 1, ``rk4`` 4, ``abm`` 4 (its RK4 start-up is of the
+same order), ``expm`` ``order_p``: its propagator is exact for the model;
+its truncation error is that of holding the inputs over a step by a
+polynomial of degree ``order_p - 1`` through the Gauss points, O(h^order_p)
+for general smooth forcing (higher for forcing slow against the step, none
+for piecewise polynomial forcing, where only round-off is left), so
+``order_p`` is the guaranteed order and the estimate errs on the safe side.
+Its round-off part does not shrink with h (it grows with the number of
+steps); the third run identifies it.
+
+A companion run that diverges (or fails otherwise) while the main run did
+not means the main step is within a factor 2 of the stability limit of the
+method (or of what its event logic can resolve): its error cannot be
+estimated, and the run is refused with ``AccuracyError`` as well. This is
+conservative: a run at h might have been accurate, but nothing shows it.
+
+Cost: the companion takes half the steps of the main run and records
+nothing but the states at the compared instants (no output rows, no
+result); it reuses the compiled system (and, for ``expm``, the propagators
+of each mode set). ``tol=None`` runs the bare method (what the
+work-precision benchmarks time).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import AccuracyError, ParameterError, SimulationError
+from .common import check_times, output_grid, signal_breakpoints
+from .ode_driver import GridProbe, GroupedKnotClock, KnotClock, simulate_ode
+
+#: default bound of the estimated error relative to the range of the states of a kind
+DEFAULT_TOL = 1e-3
+#: the suggested step aims at 0.8 of the tolerance
+SAFETY = 0.8
+#: a kind of state that does not move is measured against this fraction of its largest magnitude ...
+MAGNITUDE_FLOOR = 1e-6
+#: ... and at least against this absolute value (SI units of the state: rad, m, rad/s, m/s, ...)
+ABSOLUTE_FLOOR = 1e-12
+#: |y_2h - y_4h| / |y_h - y_2h| below this: the error does not shrink with the step
+SHRINK_RATIO = math.sqrt(2.0)
+#: steps(h) / steps(2h) below this: the segments leave no room for a doubled step
+MIN_RATIO = 1.5
+
+
+def check_tol(name: str, tol) -> float | None:
+    if tol is None:
+        return None
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (0 < tol < 1):
+        raise ParameterError(f"solver '{name}': tol (bound of the estimated error relative to the range of the "
+                             f"states) must lie in (0, 1), or be None to skip the estimate; got {tol!r}")
+    return float(tol)
+
+
+# ------------------------------------------------------------------------ labels
+@dataclass(frozen=True)
+class StateLabel:
+    signal: str         # e.g. "J2.w"
+    component: str      # e.g. "J2"
+    kind: str           # e.g. "w"; internal states: "state:<name>"
+
+
+def state_labels(c) -> list[StateLabel]:
+    """Signal, component and kind of each entry of the ODE state ``u = [x_K, v_K, z]``."""
+    st = c.structure
+    labels = []
+    for level, coords in ((0, c.Kx), (1, c.Kv)):
+        for k in coords:
+            node = st.coord_node[int(k)]
+            if node.bodies:
+                body = node.bodies[0]
+                var = body.var_names()[level]
+                labels.append(StateLabel(f"{body.name}.{var}", body.name, var))
+            else:       # pragma: no cover - a coordinate without a body has no mass and cannot be independent
+                labels.append(StateLabel(node.label(), node.label(), ("x", "v")[level]))
+    for name in c.state_names:
+        comp, var = name.rsplit(".", 1)
+        labels.append(StateLabel(name, comp, f"state:{var}"))
+    return labels
+
+
+def kind_scales(labels, values: np.ndarray) -> np.ndarray:
+    """Per state: the largest range over the run of the states of its kind (with the floors of the module)."""
+    rng = np.ptp(values, axis=0) if len(values) else np.zeros(len(labels))
+    mag = np.max(np.abs(values), axis=0) if len(values) else np.zeros(len(labels))
+    scales = np.empty(len(labels))
+    kinds: dict = {}
+    for i, lab in enumerate(labels):
+        kinds.setdefault(lab.kind, []).append(i)
+    for members in kinds.values():
+        scales[members] = max(float(rng[members].max()), MAGNITUDE_FLOOR * float(mag[members].max()),
+                              ABSOLUTE_FLOOR)
+    return scales
+
+
+@dataclass
+class Difference:
+    value: float        # max over states and instants of |a - b| / scale
+    index: int          # the state
+    t: float            # the instant
+    instants: int       # instants compared
+
+
+def scaled_difference(a: GridProbe, b: GridProbe, scales) -> Difference:
+    common = sorted(set(a.samples) & set(b.samples))
+    if not common:
+        return Difference(math.inf, 0, math.nan, 0)
+    d = np.abs(np.array([a.samples[t] for t in common]) - np.array([b.samples[t] for t in common])) / scales
+    if not np.all(np.isfinite(d)):
+        return Difference(math.inf, 0, math.nan, len(common))
+    k, i = np.unravel_index(int(np.argmax(d)), d.shape)
+    return Difference(float(d[k, i]), int(i), float(common[k]), len(common))
+
+
+# -------------------------------------------------------------------- the runs
+def _probe_times(model, t_start, t_end, dt_out):
+    return np.union1d(output_grid(t_start, t_end, dt_out), signal_breakpoints(model, t_start, t_end) + [t_end])
+
+
+def _mutable_state(obj) -> dict:
+    """Copies of the arrays and sets an object keeps between calls (the friction set's engagement and
+    driving sides): a companion run must neither see the main run's end state nor leave its own behind."""
+    return {k: v.copy() for k, v in vars(obj).items() if isinstance(v, (np.ndarray, set))}
+
+
+def _restore(obj, saved: dict):
+    for k, v in saved.items():
+        setattr(obj, k, v.copy())
+
+
+class _Isolated:
+    """Runs a companion from the state the main run started from, and puts the main run's end state back."""
+
+    def __init__(self, c, start_state):
+        self.c, self.start = c, start_state
+
+    def __enter__(self):
+        c = self.c
+        self.end = (c._t_right, _mutable_state(c.friction) if c.friction else None)
+        if c.friction:
+            _restore(c.friction, self.start)
+        return self
+
+    def __exit__(self, *exc):
+        c = self.c
+        c._t_right = self.end[0]
+        if c.friction:
+            _restore(c.friction, self.end[1])
+        return False
+
+
+def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, tol: float | None,
+                        t_start=0.0, t_end=1.0, dt_out=None, after_main=None, **driver):
+    """Run a fixed-step method and, unless ``tol`` is None, check its estimated global error.
+
+    ``make_stepper(clock, companion)`` returns the stepper factory of
+    ``simulate_ode`` whose steppers take their steps from
+    ``clock(t0, knots, t_bound, h)`` (``KnotClock`` for the main run,
+    ``GroupedKnotClock`` for the companions, ``companion=True``); ``order``: p
+    of the module docstring; ``after_main(res)``
+    completes the result's stats before any companion runs (so nothing of a
+    companion reaches the result); ``driver``: options of ``simulate_ode``.
+    Raises ``AccuracyError`` when the estimate exceeds ``tol``.
+    """
+    t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    c = model.compile()
+    start_state = _mutable_state(c.friction) if c.friction else None
+    times = _probe_times(model, t_start, t_end, dt_out) if tol is not None else None
+    main_probe = GridProbe(times) if tol is not None else None
+    res = simulate_ode(model, name, make_stepper(KnotClock, False), t_start, t_end, dt_out, probe=main_probe,
+                       **driver)
+    if after_main is not None:
+        after_main(res)
+    if tol is None:
+        return res
+    t0 = time.perf_counter()
+
+    def companion(factor):
+        probe = GridProbe(times)
+        clock = functools.partial(GroupedKnotClock, factor=factor)
+        with _Isolated(c, start_state):
+            stats = simulate_ode(model, name, make_stepper(clock, True), t_start, t_end, dt_out, probe=probe,
+                                 record=False, **driver)
+        return probe, stats
+
+    # the step actually taken: h is shortened to the output interval (and around breakpoints and events)
+    h = min(h, (t_end - t_start) / max(1, res.stats.steps))
+    try:
+        probe2, stats2 = companion(2)
+    except SimulationError as exc:
+        raise AccuracyError(_companion_failed(name, model, h, exc)) from exc
+    labels = state_labels(c)
+    values = np.array(list(main_probe.samples.values()))
+    scales = kind_scales(labels, values)
+    ratio = min(2.0, res.stats.steps / max(1, stats2.steps))
+    if ratio < MIN_RATIO:
+        raise AccuracyError(
+            f"solver '{name}' on model '{model.name}': the error of the run at h = {h:.3g} s cannot be estimated: "
+            f"the segments between time events and stick/slip events are too short for a companion run at 2h "
+            f"(it took {stats2.steps} steps against {res.stats.steps}; events from {_event_sources(model, c)}). "
+            f"Use a step h well below the spacing of the events, an adaptive solver ('ida', 'scipy:DOP853'), or "
+            f"{_SKIP}.")
+    d1 = scaled_difference(main_probe, probe2, scales) if labels else Difference(0.0, 0, t_end, 0)
+    est = d1.value / (ratio ** order - 1.0)
+    elapsed = time.perf_counter() - t0
+    st = res.stats
+    st.error_estimate = est
+    st.wall_time += elapsed
+    st.extra.update({"error_tol": tol, "error_order": order, "error_signal": labels[d1.index].signal if labels
+                     else "", "error_t": d1.t, "companion_steps": stats2.steps,
+                     "companion_rhs_calls": stats2.rhs_calls, "companion_ratio": ratio,
+                     "error_estimate_time": elapsed})
+    if not est <= tol:
+        d2 = None
+        if est < 1.0:       # is the error a truncation error (shrinking like h^p)? a run at 4h tells
+            try:
+                probe4, _ = companion(4)
+                d2 = scaled_difference(probe2, probe4, scales)
+            except SimulationError:
+                d2 = None
+        raise AccuracyError(_too_inaccurate(name, model, c, h, order, tol, est, d1, d2, labels))
+    return res
+
+
+# ---------------------------------------------------------------------- messages
+_SKIP = "pass tol=None to skip the estimate (and take the answer unchecked)"
+
+
+def _event_sources(model, c) -> str:
+    """The components whose events cut the run: friction devices, then components with time signals."""
+    from ..signals import Signal
+    names = [d.name for d in c.friction.devices] if c.friction else []
+    names += [comp.name for comp in model.components.values()
+              if any(isinstance(v, Signal) for v in comp._values.values())]
+    return ", ".join(f"'{n}'" for n in names[:6]) or "none"
+
+
+def _companion_failed(name, model, h, exc) -> str:
+    first = " ".join(str(exc).split())
+    return (f"solver '{name}' on model '{model.name}': the companion run at step 2h = {2 * h:.3g} s that estimates "
+            f"the error of the run at h = {h:.3g} s failed, so the step h is within a factor 2 of the stability "
+            f"limit of the method (or of what it resolves) and its answer cannot be trusted. Use a step h <= "
+            f"{h / 2:.3g} s, or a stiff (implicit) solver: 'ida', 'scipy:Radau', 'scipy:BDF'; or {_SKIP}. The "
+            f"companion run reported: {first}")
+
+
+def _too_inaccurate(name, model, c, h, order, tol, est, d1, d2, labels) -> str:
+    lab = labels[d1.index]
+    head = (f"solver '{name}' on model '{model.name}': estimated error {est:.2g} of {lab.signal} of "
+            f"'{lab.component}' exceeds tol = {tol:g} at step h = {h:.3g} s.")
+    how = (f"(Error relative to the range of the {lab.kind} states, worst at t = {d1.t:.6g} s; Richardson "
+           f"estimate against a run at 2h, order {order:g}; see regmech.solvers.richardson.)")
+    if not est < 1.0:
+        return (f"{head} The error is as large as the motion itself: the step does not resolve the solution at "
+                f"all (it may be beyond the stability limit of the method). Use a much smaller step, or a stiff "
+                f"(implicit) solver: 'ida', 'scipy:Radau', 'scipy:BDF'; or {_SKIP}. {how}"
+                f"{c.stiffness_hint(always=True)}")
+    if d2 is not None and math.isfinite(d2.value) and d2.value < SHRINK_RATIO * d1.value:
+        return (f"{head} The error does not shrink with the step, so a smaller step will not help: use an "
+                f"implicit adaptive solver, 'scipy:Radau', 'scipy:BDF' or 'ida'; or {_SKIP}. The difference "
+                f"between the runs at 2h and 4h, {d2.value:.2g}, is not larger than that between h and 2h, "
+                f"{d1.value:.2g}: a round-off floor or a discontinuity the steps do not resolve. {how}"
+                f"{c.stiffness_hint()}")
+    p = order
+    observed = ""
+    if d2 is not None and math.isfinite(d2.value) and d2.value > 0 and d1.value > 0:
+        p_obs = math.log2(d2.value / d1.value)
+        if p_obs < order - 0.5:
+            p = max(0.5, p_obs)
+            est = d1.value / (2.0 ** p - 1.0)
+            observed = f" (the error shrinks like h^{p_obs:.2g} here, slower than the order {order:g} of the method)"
+    h_new = h * SAFETY * (tol / est) ** (1.0 / p)
+    return f"{head} Use a step h <= {h_new:.3g} s, or an adaptive solver; or {_SKIP}{observed}. {how}"
+
+
+__all__ = ["simulate_fixed_step", "check_tol", "state_labels", "kind_scales", "DEFAULT_TOL"]
