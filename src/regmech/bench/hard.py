@@ -495,8 +495,9 @@ def hard_markdown(cases, outcomes, solvers, size, machine: dict, limit: float, w
              "rtol/100; fixed-step solvers at the step `h`) and checked against an analytic or independent "
              "answer. **pass**: within the stated tolerance; **refuse**: stopped with a regmech error that names "
              "a component (acceptable); **fail**: a wrong answer (`inaccurate` for fixed-step methods, run "
-             "with `tol` = the answer tolerance of their Richardson error estimate), a NaN, an error naming no component, a non-regmech exception, or the "
-             "time limit (a run that would hang). The CI-sized versions run in `tests/hard/`.", ""]
+             "with `tol` = the answer tolerance of their Richardson error estimate), a NaN, an error naming no "
+             "component, a non-regmech exception, or the time limit (a run that would hang). The CI-sized "
+             "versions run in `tests/hard/`.", ""]
     by = {(o.case, o.solver): o for o in outcomes}
     mark = {"pass": "pass", "refuse": "refuse", "fail": "**FAIL**"}
     hdr = ["case"] + [f"`{s}`" for s in solvers]

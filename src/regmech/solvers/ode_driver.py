@@ -19,7 +19,11 @@ does everything else, identically for every ODE-form solver:
   logic ``settle`` runs at the crossing and the stepper restarts there;
 * the structural sparsity pattern of ``dg/du`` and a column-grouped
   finite-difference Jacobian (used by the implicit scipy methods and by the
-  convolution method's time constants).
+  convolution method's time constants);
+* for the error estimate of the fixed-step methods (``richardson``): a
+  ``GridProbe`` that keeps the states at the output instants a run's steps
+  hit exactly, a ``GroupedKnotClock`` for companion runs at exactly 2h (4h),
+  and companion runs that record nothing else (``record=False``).
 """
 
 from __future__ import annotations
