@@ -65,3 +65,92 @@ class Recorder:
                                   f"solver settings are unstable there (try a tighter tolerance or a stable solver)")
         modes = np.array(self.modes).reshape(len(self.t), self.mw)
         return np.array(self.t), Y, YP, np.array(self.left), modes
+
+
+# ----------------------------------------------------------------- step budget
+#: what a run that reaches its step budget can do instead (appended to the error message)
+STEP_CAP_REMEDIES = ("use an implicit solver ('ida', 'scipy:Radau', 'scipy:BDF' or 'convolution'), reduce the "
+                     "model with rm.Scene(model, ..., band_hz=...) (links above the band become rigid), loosen "
+                     "rtol or shorten the run, or raise max_steps")
+
+
+def fastest_link(c):
+    """``(device, omega [rad/s])`` of the compliant link with the highest local frequency, or None.
+
+    ``CompiledSystem.link_frequencies``: ``sqrt(k sum_j S_rj^2 / m_j)`` per
+    compliant row, the frequency a link would have between its masses alone.
+    """
+    if c.Sc.shape[0] == 0:
+        return None
+    w = c.link_frequencies()
+    if not np.any(w > 0):
+        return None
+    i = int(np.argmax(w))
+    return c.structure.compliant[i].device, float(w[i])
+
+
+class StepBudget:
+    """The steps of one whole run (every segment) against ``max_steps``; shared by the run's steppers.
+
+    A stepper calls ``charge(stepper, problem)`` after every accepted step;
+    when the run has taken more than ``max_steps`` steps it stops with a
+    ``SimulationError`` that says where (time reached, last step size) and
+    why: for an explicit method (``stability_bound`` = the ``h * rho`` up to
+    which it is stable on the negative real axis) whether the last step sat
+    at the stability limit set by the spectral radius ``rho`` of ``dg/du``
+    (stiff for the method) or below it (the steps are set by the tolerance:
+    a long run for the method's order); in both cases the fastest link is
+    named (``CompiledSystem.link_frequencies``), with the number of its
+    periods in the run. The cap is on accepted steps, the unit the run's
+    ``Stats.steps`` reports; the cost of one step (which sets what a refused
+    run costs) is measured per solver where the default is chosen.
+    """
+
+    def __init__(self, name: str, max_steps: int, t_end: float, stability_bound: float | None = None):
+        if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+            raise ParameterError(f"solver '{name}': max_steps must be a positive integer, got {max_steps!r}")
+        self.name = name
+        self.max_steps = int(max_steps)
+        self.t_end = float(t_end)
+        self.stability_bound = stability_bound
+        self.steps = 0
+
+    def charge(self, stepper, problem) -> None:
+        self.steps += 1
+        if self.steps > self.max_steps:
+            raise self.error(stepper, problem)
+
+    def error(self, stepper, problem) -> SimulationError:
+        c = problem.c
+        t, h = float(stepper.t), float(stepper.t - stepper.t_old)
+        where = (f"solver '{self.name}' took more than max_steps={self.max_steps} steps in model "
+                 f"'{c.model.name}' and stopped at t={t:.6g} s of t_end={self.t_end:.6g} s (last step "
+                 f"h={h:.3g} s)")
+        why, stiff = self._diagnosis(stepper, problem, h)
+        named = c.stiffness_hint(always=True) if stiff else ""
+        link = fastest_link(c)
+        if not named and link is not None:
+            dev, w = link
+            named = (f" The fastest link is {type(dev).__name__} '{dev.name}' (local mode {w / 2 / math.pi:.3g} Hz, "
+                     f"about {w / (2 * math.pi) * self.t_end:.3g} periods in the run).")
+        return SimulationError(f"{where}: {why}.{named} To finish: {STEP_CAP_REMEDIES}.")
+
+    def _diagnosis(self, stepper, problem, h) -> tuple[str, bool]:
+        """Why the run needs so many steps, and whether the stiffness of the model is the reason."""
+        if self.stability_bound is None:
+            return ("the steps are set by the tolerance (this implicit method has no stability limit on them): "
+                    "the run is long for this rtol, or the model moves fast everywhere"), False
+        from .ode_driver import _spectral_radius
+        rho = _spectral_radius(problem, stepper.t, stepper.u)
+        if not rho or h <= 0:
+            return "an explicit method that needs this many steps is usually held back by stiffness", True
+        ratio = h * rho / self.stability_bound
+        if ratio > 0.3:
+            more = (self.t_end - stepper.t) * rho / self.stability_bound
+            return (f"h * rho = {h * rho:.3g} with the spectral radius rho = {rho:.3g} 1/s of the Jacobian, at "
+                    f"the stability limit {self.stability_bound:g} of this explicit method: the model is stiff "
+                    f"for it (about {more:.3g} more steps to go)"), True
+        return (f"h * rho = {h * rho:.3g} is well below this method's stability limit {self.stability_bound:g} "
+                f"(rho = {rho:.3g} 1/s): the steps are set by the tolerance, i.e. the run is long for this "
+                f"method's order at this rtol (a higher-order method such as 'scipy:DOP853' takes fewer "
+                f"steps)"), False

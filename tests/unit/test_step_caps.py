@@ -1,0 +1,120 @@
+"""Step caps of the adaptive ODE-form solvers, and DOP853's absolute tolerances.
+
+A run that needs more than ``max_steps`` steps stops with a ``SimulationError``
+naming the fastest link, the time reached and the remedies (``common.StepBudget``),
+instead of crawling; small ``max_steps`` keep these tests fast and machine-independent.
+"""
+
+import numpy as np
+import pytest
+
+import regmech as rm
+from regmech.bench.hard_models import inertia_ratio_chain, stretched_chain, undamped_chain
+from regmech.solvers import scipy_ivp
+
+
+def _stretched(ratio):
+    chain, signal = stretched_chain(ratio)
+    return chain.to_model(signal)
+
+
+def test_explicit_method_at_its_stability_limit_is_stopped_by_the_step_count():
+    # spectral radius 4.0e3 1/s: the up-front prediction at RK45's stability limit is 1,218 steps
+    # for 1 s, so a cap of 1,400 lets the run start; it takes 1,595 steps, so the count stops it
+    model = _stretched(1e4)
+    with pytest.raises(rm.SimulationError) as err:
+        model.simulate(1.0, dt_out=0.01, solver="scipy:RK45", rtol=1e-8, max_steps=1400)
+    msg = str(err.value)
+    assert "more than max_steps=1400 steps" in msg and "stopped at t=" in msg and "last step" in msg
+    assert "stability limit" in msg and "stiff" in msg
+    assert "'link5'" in msg                                  # the fastest link is named
+    assert "'ida'" in msg and "band_hz" in msg and "raise max_steps" in msg
+
+
+def test_explicit_method_held_by_the_tolerance_is_told_so():
+    model, _ = undamped_chain()
+    with pytest.raises(rm.SimulationError) as err:
+        model.simulate(20.0, dt_out=0.1, solver="scipy:RK23", rtol=1e-8, max_steps=500)
+    msg = str(err.value)
+    assert "set by the tolerance" in msg and "DOP853" in msg
+    assert "fastest link is Spring 'spring" in msg and "periods in the run" in msg
+
+
+def test_implicit_method_is_capped_too():
+    model, _ = undamped_chain()
+    with pytest.raises(rm.SimulationError) as err:
+        model.simulate(20.0, dt_out=0.1, solver="scipy:Radau", rtol=1e-8, max_steps=200)
+    msg = str(err.value)
+    assert "more than max_steps=200" in msg and "implicit method" in msg and "'spring" in msg
+
+
+def test_cap_counts_the_whole_run_across_segments():
+    # the ramp's breakpoint at t = 2 s cuts the run in two segments: the cap is on their sum
+    model = _stretched(1e3)
+    steps = model.simulate(4.0, dt_out=0.05, solver="scipy:RK45", rtol=1e-6).stats.steps
+    assert steps > 100
+    model.simulate(4.0, dt_out=0.05, solver="scipy:RK45", rtol=1e-6, max_steps=steps)   # exactly enough
+    with pytest.raises(rm.SimulationError, match=f"more than max_steps={steps - 1} "):
+        model.simulate(4.0, dt_out=0.05, solver="scipy:RK45", rtol=1e-6, max_steps=steps - 1)
+
+
+def test_convolution_is_capped_with_the_same_message():
+    model = _stretched(1e5)
+    with pytest.raises(rm.SimulationError) as err:
+        model.simulate(1.0, dt_out=0.01, solver="convolution", rtol=1e-8, max_steps=300)
+    msg = str(err.value)
+    assert "solver 'convolution' took more than max_steps=300" in msg and "'link5'" in msg
+
+
+def test_convolution_fixed_steps_are_not_capped():
+    model = _stretched(1e3)
+    res = model.simulate(1.0, dt_out=0.01, solver="convolution", h=0.002, max_steps=10)
+    assert res.stats.steps >= 500
+
+
+@pytest.mark.parametrize("bad", [0, -5, 2.5, True])
+def test_max_steps_must_be_a_positive_integer(bad):
+    with pytest.raises(rm.ParameterError, match="max_steps"):
+        _stretched(1e3).simulate(0.1, solver="scipy:RK45", max_steps=bad)
+
+
+def test_default_caps_leave_the_benchmark_ladder_alone():
+    # the longest runs of `regmech bench` (rtol down to 1e-9, DOP853 references at 1e-12), module docstring
+    longest = {"RK23": 20_542, "RK45": 1_735, "DOP853": 871, "Radau": 4_744, "BDF": 3_737, "LSODA": 3_981}
+    for method, steps in longest.items():
+        assert scipy_ivp.DEFAULT_MAX_STEPS[method] > 1.5 * steps, method
+
+
+def test_dop853_atol_follows_the_scale_of_the_motion():
+    """inertia_ratio_1e8 (all states below 2e-3): DOP853 at its stability limit let a speed drift
+    4.7e-4 of its range with the plain atol; scaled to the motion it stays within 1e-4."""
+    from regmech.bench.hard import CI, get_case
+    case = get_case("inertia_ratio_1e8")
+    model, check = case.build(CI)
+    res = model.simulate(case.t_end[CI], dt_out=case.dt_out[CI], solver="scipy:DOP853", rtol=case.rtol)
+    assert check(res).ok, check(res)
+
+
+def test_state_scale_never_loosens_and_keeps_an_array_atol():
+    model = inertia_ratio_chain()[0].to_model(inertia_ratio_chain()[1])
+    c = model.compile()
+    scale = scipy_ivp.StateScale(1e-8, c)
+    scale.see(np.zeros(c.ode_size()))
+    assert np.allclose(scale.tolerances(), 1e-8 * scipy_ivp.ATOL_FLOOR)
+    u = np.full(c.ode_size(), 5.0)
+    scale.see(u)
+    assert np.allclose(scale.tolerances(), 1e-8)                # magnitude above 1: the plain atol
+    vec = np.linspace(1e-9, 1e-8, c.ode_size())
+    assert scipy_ivp.StateScale(vec, c).tolerances() is vec
+
+
+def test_convolution_stops_when_newton_keeps_failing_and_names_the_stiff_link():
+    # stretched_1e7: once the chain settles the round-off of link5's force exceeds the speeds' atol;
+    # Newton then fails at almost every attempt (deterministic: no wall clock involved, ~15,000 steps)
+    from regmech.bench.hard import CI, get_case
+    case = get_case("stretched_1e7")
+    model, _ = case.build(CI)
+    with pytest.raises(rm.SimulationError) as err:
+        model.simulate(case.t_end[CI], dt_out=case.dt_out[CI], solver="convolution", rtol=case.rtol)
+    msg = str(err.value)
+    assert "failed to converge" in msg and "'link5'" in msg and "round-off" in msg
