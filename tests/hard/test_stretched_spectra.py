@@ -37,7 +37,7 @@ def test_expm_on_frequency_ratio_1e7_is_accurate_or_refuses():
 
 def test_explicit_adaptive_solver_on_stiff_chain_stops_clearly():
     """An explicit scipy solver refuses up front when its stability limit needs more than
-    ``max_steps`` steps (default 200,000; here 20,000 to keep CI short), naming the stiff link."""
+    ``max_steps`` steps (default per method, ``scipy_ivp.DEFAULT_MAX_STEPS``; here 20,000), naming the stiff link."""
     import regmech as rm
     from regmech.bench.hard_models import stretched_chain
     chain, signal = stretched_chain(1e5)
