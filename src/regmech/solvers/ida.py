@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..result import Event, Result, Stats
 from . import register
-from .common import Recorder, check_times, output_grid, signal_breakpoints
+from .common import Recorder, check_link_spread, check_times, output_grid, signal_breakpoints
 
 
 class _Ordering:
@@ -185,17 +185,9 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     t_stop = next(bp_iter)
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     k_max = float(np.abs(c.stiffness_estimate()).max(initial=0.0)) if c.Sc.shape[0] else 0.0
-    if stiff_check and c.Sc.shape[0] >= 2:
-        # a link so much stiffer than the rest that its force's round-off (eps * spread) exceeds
-        # the tolerance: Newton and the error test then fail over and over and IDA crawls
-        w = c.link_frequencies()
-        w = w[w > 0]
-        spread = (w.max() / w.min()) ** 2 if w.size >= 2 else 1.0
-        if np.finfo(float).eps * spread > 100 * rtol:
-            raise SimulationError(
-                f"model '{model.name}': the link stiffnesses spread over {spread:.3g} (frequency ratio "
-                f"{np.sqrt(spread):.3g}), so the stiffest link's force carries round-off larger than rtol={rtol:g} "
-                f"allows; IDA would crawl.{c.stiffness_hint()} (stiff_check=False runs it anyway.)")
+    # a link so much stiffer than the rest that its force's round-off (eps * spread) exceeds
+    # the tolerance: Newton and the error test then fail over and over and IDA crawls
+    check_link_spread(c, rtol, "ida", stiff_check)
     opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps)
     while t < t_end:
         c._t_right = t_stop
