@@ -25,3 +25,17 @@ def test_stick_slip_is_solved_within_tolerance(key, solver):
 # (was xfail: a device already past zero slip by round-off at an event now locks with the others)
 def test_simultaneous_locking_in_the_ode_form_solvers(solver):
     assert_passes(outcome("simultaneous_lock", solver))
+
+
+@pytest.mark.parametrize("solver", ["scipy:RK45", "scipy:Radau", "rk4"])
+def test_a_held_vehicle_does_not_drift_in_the_ode_form(solver):
+    # the KKT solve leaves the held row's acceleration at round-off (4e-16 m/s^2), which integrated
+    # over the full-size 10^4 s hold drifted 1.9e-8 m; the ODE form now projects it away exactly
+    import numpy as np
+    from regmech.bench.hard_models import slope_hold
+    model, t_b, _ = slope_hold(t_hold=100.0)
+    opts = {"h": 0.05} if solver == "rk4" else {"rtol": 1e-8}
+    res = model.simulate(105.0, dt_out=0.05, solver=solver, **opts)
+    held = res.t < 100.0
+    assert np.all(res["vehicle.s"][held] == 0.0) and np.all(res["vehicle.v"][held] == 0.0)
+    assert abs(res.events[0].t - t_b) < 1e-6

@@ -64,6 +64,7 @@ class CompiledSystem:
         self._build_references()
         self._build_jacobian()
         self._kkt_cache: dict = {}
+        self._hold_cache: dict = {}
         self.friction = None
         self.nw_friction = 0
         if st.friction:
@@ -419,7 +420,46 @@ class CompiledSystem:
     def ode_rhs(self, t, u, modes):
         x, v, z = self.ode_lift(t, u, modes)
         a, lam, dz = self.accelerations(t, x, v, z, modes)
+        if self.mf:
+            a = self._hold_stuck(a, modes)
         return np.concatenate([v[self.Kx], a[self.Kv], dz])
+
+    def _hold_stuck(self, a, modes):
+        """Make the relative accelerations of stuck friction rows zero to round-off of ``a`` itself.
+
+        The KKT solve leaves ``G_s a`` at the round-off of the forces, ``eps |f| / m``
+        (a vehicle held by its brake on a slope: 4e-16 m/s^2), which the ODE form
+        integrates into a drift of the held motion (1.9e-8 m over 10^4 s). The
+        mass-weighted projection ``a -= M^-1 G_s^T (G_s M^-1 G_s^T)^-1 G_s a`` removes it
+        (a held body at rest then has exactly a = 0). IDA does not need it: its
+        residual row of a stuck device is ``G_s a = 0`` itself.
+        """
+        stuck = np.asarray(modes) == 0
+        if not stuck.any():
+            return a
+        key = stuck.tobytes()
+        hit = self._hold_cache.get(key)
+        if hit is None:
+            Gs = self.Gf[np.nonzero(stuck)[0]].tocsr()
+            cols = np.unique(Gs.indices)
+            if np.any(self.mass[cols] <= 0):
+                hit = False           # a massless coordinate in the row: leave the KKT answer as it is
+            else:
+                minv = np.zeros(self.n)
+                minv[cols] = 1.0 / self.mass[cols]
+                S = (Gs @ sp.diags(minv) @ Gs.T).toarray()
+                try:
+                    hit = (Gs, minv, np.linalg.inv(S)) if np.linalg.cond(S) < 1e12 else False
+                except np.linalg.LinAlgError:
+                    hit = False
+            self._hold_cache[key] = hit
+        if hit is False:
+            return a
+        Gs, minv, Sinv = hit
+        r = Gs @ a
+        if not np.any(r):
+            return a
+        return a - minv * (Gs.T @ (Sinv @ r))
 
     def y_from_ode(self, t, u, modes):
         x, v, z = self.ode_lift(t, u, modes)
