@@ -211,3 +211,20 @@ def test_grouped_clock_takes_exactly_double_steps_on_every_other_knot():
 def test_bad_tol_is_refused(solver, bad):
     with pytest.raises(ParameterError, match="tol"):
         oscillator().simulate(0.1, 0.01, solver=solver, tol=bad)
+
+
+def test_a_long_horizon_at_a_coarse_step_asks_for_a_much_smaller_step_not_another_solver():
+    # 320 periods at h omega = 0.5: the runs at h, 2h, 4h all carry phase errors of the size of the
+    # motion, so the differences do not shrink; that is not a round-off floor
+    from regmech.components import Fixed, Inertia, Spring
+    m = rm.Model("osc")
+    J = m.add(Inertia("J", J=1.0, phi0=1.0, w0=0.0))
+    k = m.add(Spring("k", c=100.0))
+    g = m.add(Fixed("g"))
+    m.connect(J.flange_b, k.flange_a)
+    m.connect(k.flange_b, g.flange)
+    with pytest.raises(rm.AccuracyError) as err:
+        m.simulate(200.0, dt_out=0.1, solver="rk4", h=0.05)
+    msg = str(err.value)
+    assert "far from resolving the motion" in msg and "'J'" in msg
+    assert "a smaller step will not help" not in msg

@@ -36,8 +36,11 @@ longer than the output interval is shortened to it). To tell a truncation error 
 a smaller step does not lower (round-off of ``expm`` on a stretched
 spectrum, a discontinuity the steps do not resolve), a refusal first runs a
 third, 4h run: when ``|y_2h - y_4h|`` is not at least sqrt(2) times
-``|y_h - y_2h|`` the error does not shrink with h and the message says so and
-suggests an implicit adaptive solver instead; when it shrinks more slowly
+``|y_h - y_2h|`` the error does not shrink with h: with an estimate below 1 %
+of the range (``FLOOR_LIMIT``) that is a floor, and the message says so and suggests an
+implicit adaptive solver instead; above it the steps are far from resolving
+the motion (phase errors over many periods saturate), and the message asks
+for a much smaller step; when it shrinks more slowly
 than h^p, the observed order is used for the step suggestion.
 
 Orders p: ``euler`` 1, ``rk4`` 4, ``abm`` 4 (its RK4 start-up is of the
@@ -86,6 +89,9 @@ MAGNITUDE_FLOOR = 1e-6
 ABSOLUTE_FLOOR = 1e-12
 #: |y_2h - y_4h| / |y_h - y_2h| below this: the error does not shrink with the step
 SHRINK_RATIO = math.sqrt(2.0)
+#: ... but only when the estimate is below this fraction of the range (a floor); larger errors that do not
+#: shrink are the pre-asymptotic range of steps that do not resolve the motion
+FLOOR_LIMIT = 1e-2
 #: steps(h) / steps(2h) below this: the segments leave no room for a doubled step
 MIN_RATIO = 1.5
 
@@ -302,6 +308,14 @@ def _too_inaccurate(name, model, c, h, order, tol, est, d1, d2, labels) -> str:
                 f"all (it may be beyond the stability limit of the method). Use a much smaller step, or a stiff "
                 f"(implicit) solver: 'ida', 'scipy:Radau', 'scipy:BDF'; or {_SKIP}. {how}"
                 f"{c.stiffness_hint(always=True)}")
+    if d2 is not None and math.isfinite(d2.value) and d2.value < SHRINK_RATIO * d1.value \
+            and est >= FLOOR_LIMIT:
+        # large differences that do not follow h^p: the steps are far from resolving the motion (phase
+        # errors over many periods saturate at the size of the motion), not a floor
+        return (f"{head} The runs at h, 2h and 4h differ by {d1.value:.2g} and {d2.value:.2g} of the range: "
+                f"the steps are far from resolving the motion over this run (a long horizon accumulates phase "
+                f"error), so the error does not yet shrink like h^{order:g}. Use a much smaller step or an adaptive "
+                f"solver; or {_SKIP}. {how}{c.stiffness_hint(always=True)}")
     if d2 is not None and math.isfinite(d2.value) and d2.value < SHRINK_RATIO * d1.value:
         return (f"{head} The error does not shrink with the step, so a smaller step will not help: use an "
                 f"implicit adaptive solver, 'scipy:Radau', 'scipy:BDF' or 'ida'; or {_SKIP}. The difference "

@@ -211,8 +211,9 @@ def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps):
         raise SimulationError(
             f"solver '{name}' on model '{problem.c.model.name}': the Jacobian's spectral radius {rho:.3g} 1/s limits "
             f"this explicit method to steps below {EXPLICIT_STABILITY[method] / rho:.3g} s, about {needed:.3g} steps "
-            f"for the run, more than max_steps={max_steps}: the model is stiff for an explicit method. Use 'ida', "
-            f"'scipy:Radau', 'scipy:BDF' or 'convolution', or raise max_steps."
+            f"for the run, more than max_steps={max_steps}: the model is stiff for an explicit method (or the run "
+            f"is long: {(t_end - t0) * rho / (2 * np.pi):.3g} periods of its fastest motion). Use 'ida', "
+            f"'scipy:Radau', 'scipy:BDF' or 'convolution' for a stiff model, or raise max_steps for a long run."
             f"{problem.c.stiffness_hint(always=True)}")
 
 
