@@ -505,7 +505,7 @@ def stiffness_derivatives(lin: LinearModel, rel_step: float = 1e-3):
 def _null_space(c, modes):
     """``T`` (n x nq), ``P`` (n x ng) and the independent coordinates (see module docstring)."""
     n = c.n
-    kin_rows = _kinematic_rows(c.structure)
+    kin_rows = kinematic_rows(c.structure)
     if c.Gpv.shape[0]:
         T1, K1, solve1 = _eliminate(c.Gpv, np.asarray(c.Dv, int), n)
         E = np.zeros((c.Gpv.shape[0], len(kin_rows)))
@@ -569,8 +569,9 @@ def _embed(block, D, n):
     return sp.csr_matrix((X.data, (np.asarray(D)[X.row], X.col)), shape=(n, X.shape[1]))
 
 
-def _kinematic_rows(st) -> list[int]:
-    """Indices (in G_pv) of rows prescribed by Position and Speed sources."""
+def kinematic_rows(st) -> list[int]:
+    """Indices (in G_pv) of the rows prescribed by Position and Speed sources (kinematic inputs; shared with
+    the expm solver, which treats them as inputs of the linear model)."""
     npos = len(st.position)
     return [j for j, r in enumerate(st.position) if r.device.device_kind() == "position"] + \
         [npos + j for j in range(len(st.speed))]

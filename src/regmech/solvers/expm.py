@@ -294,8 +294,8 @@ class Forcing:
         cols.append(-(ST[self.varying_rows].T) if len(self.varying_rows) else sp.csr_matrix((nq, 0)))
         names += [f"force row {r}" for r in self.varying_rows]
         # kinematic inputs
-        from ..compile.linear import _kinematic_rows
-        self.kin_rows = np.asarray(_kinematic_rows(st), int)
+        from ..compile.linear import kinematic_rows
+        self.kin_rows = np.asarray(kinematic_rows(st), int)
         self.n_pos = len(st.position)
         ng = len(self.kin_rows)
         if ng:
