@@ -63,10 +63,12 @@ def choose_linsolver(c, dense_max=60, band_max=40, dense_wide_max=400):
     * dense again for wider coupling up to ``dense_wide_max`` unknowns;
     * sparse (SuperLU_MT, a fixed cost of milliseconds per factorisation) beyond.
 
-    Measured (benchmarks/results/linsolver.md): trains (band 7) dense and band tie up to
-    N = 80, band is 2-4x faster than dense from N = 320 on; a hub joined to n satellites
-    (no narrow ordering exists): dense 18x faster than sparse at N = 82, 1.8x at N = 402,
-    5x slower at N = 802.
+    Measured (benchmarks/results/linsolver.md, idle and with the other core busy): this choice is
+    within 1.3x of the fastest of the three on trains of 5-400 cars, hubs of 10-400 satellites and
+    the library scenes; band beats dense 2-4x on long trains, dense beats band on wide coupling, and
+    sparse wins only for large wide models (hub of 200+ satellites, N > 400). SuperLU_MT's time also
+    varies far more than dense and band with the load on the machine (hub of 40: dense 23 ms in all
+    conditions, sparse 30-409 ms), which is why it is not used where dense or band come close.
     """
     if c.N <= dense_max:
         return "dense", _Ordering(c.N)
