@@ -16,7 +16,7 @@ import numpy as np
 
 from .errors import RegmechError
 
-MODE_NAMES = {-1: "Backward", 0: "Stuck", 1: "Forward", 2: "Free"}
+MODE_NAMES = {-1: "Backward", 0: "Stuck", 1: "Forward", 2: "Free", 3: "Held"}
 
 
 @dataclass(frozen=True)

@@ -117,6 +117,7 @@ def test_two_lockable_devices_on_one_rigid_group_hold_in_turn():
     res = _double_brake(rm.signals.Ramp(height=15.0, duration=1.0)).simulate(1.0, dt_out=1e-3, rtol=1e-9)
     changes = [(round(e.t, 6), e.component, e.old_mode, e.new_mode) for e in res.events]
     assert changes[:2] == [(0.4, "b1", 0, 1), (0.4, "b2", 3, 0)]
+    assert str(res.events[1]) == "t=0.4: b2 Held -> Stuck"
     assert ("b2", 0, 1) in [c[1:] for c in changes]
     first_motion = res.t[np.argmax(np.abs(res["J.w"]) > 1e-9)]
     assert first_motion == pytest.approx(11.0 / 15.0, abs=2e-3)     # 5 + 6 N m
