@@ -154,8 +154,9 @@ def run_hard(args) -> None:
     else:
         cases = [c for c in everything if not args.merge or c.key not in done]
     todo = {c.key for c in cases}
-    outcomes = [o for o in previous if o.case not in todo]
     solvers = args.solvers or available_solvers()
+    # keep every earlier outcome except those of the (case, solver) pairs run again
+    outcomes = [o for o in previous if not (o.case in todo and o.solver in solvers)]
     limit = args.time_limit or 60.0
     meta = json.loads(HARD_META.read_text()) if args.merge and HARD_META.exists() else {}
     wall = float(meta.get("wall_total", 0.0))

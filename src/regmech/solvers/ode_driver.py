@@ -242,13 +242,17 @@ class KnotClock:
     """Equal steps of at most ``h_max`` that land exactly on every knot (output instant) and on ``t_bound``.
 
     Each knot interval of length L is cut into ``ceil(L / h_max)`` equal
-    steps; the last one ends on the knot itself (no round-off drift).
+    steps; the last one ends on the knot itself (no round-off drift). With
+    ``parts`` > 1 each of those steps is cut into ``parts`` equal ones (the
+    half-step companion of ``regmech.solvers.richardson``: it lands on every
+    instant of the main run).
     """
 
-    def __init__(self, t0, knots, t_bound, h_max):
+    def __init__(self, t0, knots, t_bound, h_max, parts=1):
         self.knots = np.asarray(knots, float)
         self.t_bound = float(t_bound)
         self.h_max = float(h_max)
+        self.parts = int(parts)
         self._k = 0
         self._n_left = 0
         self._i = 0
@@ -262,7 +266,7 @@ class KnotClock:
                 self._k += 1
             target = self.knots[self._k] if self._k < len(self.knots) else self.t_bound
             span = target - t
-            n = max(1, math.ceil(span / self.h_max * (1 - 1e-12)))
+            n = max(1, math.ceil(span / self.h_max * (1 - 1e-12))) * self.parts
             self._t_from, self._target, self._h, self._n_left, self._i = t, target, span / n, n, 0
         self._i += 1
         self._n_left -= 1
