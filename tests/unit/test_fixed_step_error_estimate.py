@@ -244,3 +244,13 @@ def test_a_long_horizon_at_a_coarse_step_asks_for_a_much_smaller_step_not_anothe
     msg = str(err.value)
     assert "far from resolving the motion" in msg and "'J'" in msg
     assert "a smaller step will not help" not in msg
+
+
+def test_the_half_step_check_is_skipped_on_long_runs(monkeypatch):
+    # beyond HALF_STEP_MAX_STEPS main steps the 2h estimate decides alone (the h/2 run would cost twice
+    # the main run): the same abm run as above is then refused on its 2h estimate
+    from regmech.library import vehicle_launch
+    from regmech.solvers import richardson
+    monkeypatch.setattr(richardson, "HALF_STEP_MAX_STEPS", 100)
+    with pytest.raises(AccuracyError, match="estimated error"):
+        vehicle_launch().simulate(2.0, dt_out=0.01, solver="abm", h=1e-3)

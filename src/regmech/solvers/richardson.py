@@ -62,7 +62,9 @@ run fails too is the run refused without an estimate (``AccuracyError``).
 The run at h/2 also decides before a refusal by the 2h estimate (when that
 estimate is below 1): a run at 2h can put a fast mode outside the range where
 the error goes like h^p and over-estimate, e.g. abm at h = 1e-3 on the
-vehicle launch: 0.013 against 2h, 6e-5 against h/2, true 2.2e-4.
+vehicle launch: 0.013 against 2h, 6e-5 against h/2, true 2.2e-4. Both uses
+of the h/2 run are skipped for runs of more than ``HALF_STEP_MAX_STEPS``
+main steps (it would cost twice the main run).
 
 Cost: the companion takes half the steps of the main run and records
 nothing but the states at the compared instants (no output rows, no
@@ -97,6 +99,9 @@ SHRINK_RATIO = math.sqrt(2.0)
 #: ... but only when the estimate is below this fraction of the range (a floor); larger errors that do not
 #: shrink are the pre-asymptotic range of steps that do not resolve the motion
 FLOOR_LIMIT = 1e-2
+#: the check at h/2 (twice the main run's steps) is made only for runs of at most this many steps: on a
+#: longer run it would triple the cost of a refusal (rk4 over 1e6 steps: minutes)
+HALF_STEP_MAX_STEPS = 100_000
 #: steps(h) / steps(2h) below this: the segments leave no room for a doubled step
 MIN_RATIO = 1.5
 
@@ -253,7 +258,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
         probe2, stats2 = companion(2)
     except SimulationError as exc:
         # 2h is beyond what the method resolves (or its stability limit): estimate against h/2 instead
-        half = _half_step_estimate(main_probe, companion, order, scales, labels, t_end)
+        half = _half_step_estimate(main_probe, companion, order, scales, labels, t_end, res.stats.steps)
         if half is None:
             raise AccuracyError(_companion_failed(name, model, h, exc)) from exc
         est, d, stats_h = half
@@ -278,7 +283,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
     if not est <= tol and est < 1.0:
         # the run at 2h may lie outside the range where the error goes like h^p (a fast mode near the
         # method's stability limit at 2h but resolved at h): the run at h/2 decides before refusing
-        half = _half_step_estimate(main_probe, companion, order, scales, labels, t_end)
+        half = _half_step_estimate(main_probe, companion, order, scales, labels, t_end, res.stats.steps)
         if half is not None and half[0] <= tol:
             est_h, d, stats_h = half
             _record(res.stats, tol, order, est_h, d, labels, stats_h, 0.5, time.perf_counter() - t0,
@@ -297,9 +302,11 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
     return res
 
 
-def _half_step_estimate(main_probe, companion, order, scales, labels, t_end):
+def _half_step_estimate(main_probe, companion, order, scales, labels, t_end, main_steps):
     """``(E, difference, stats)`` against a run at h/2 (every main step cut in two):
-    ``E = |y_h - y_h/2| 2^p / (2^p - 1)``; None when that run fails."""
+    ``E = |y_h - y_h/2| 2^p / (2^p - 1)``; None when that run fails or the main run is too long for it."""
+    if main_steps > HALF_STEP_MAX_STEPS:
+        return None
     try:
         probe_half, stats_half = companion(0.5)
     except SimulationError:
