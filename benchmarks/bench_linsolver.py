@@ -29,24 +29,9 @@ SOLVERS = ("dense", "band", "sparse")
 
 
 def hub(n: int):
-    """A wide coupling: a hub inertia joined to n satellite inertias by spring-dampers, each
-    satellite damped to ground, a torque step on the hub (no ordering gives a narrow band)."""
-    import regmech as rm
-    from regmech.components import Damper, Fixed, Inertia, SpringDamper, Torque
-    m = rm.Model(f"hub_{n}")
-    h = m.add(Inertia("hub", J=1.0))
-    g = m.add(Fixed("ground"))
-    tq = m.add(Torque("drive", tau=rm.signals.Step(height=10.0, start_time=0.1)))
-    m.connect(tq.flange, h.flange_a)
-    for i in range(n):
-        s = m.add(Inertia(f"sat{i}", J=0.1 * (1 + i % 7)))
-        k = m.add(SpringDamper(f"link{i}", c=1e3 * (1 + i % 5), d=1.0))
-        d = m.add(Damper(f"drag{i}", d=0.5))
-        m.connect(h.flange_b, k.flange_a)
-        m.connect(k.flange_b, s.flange_a)
-        m.connect(s.flange_b, d.flange_a)
-        m.connect(d.flange_b, g.flange)
-    return m
+    """A hub joined to n satellites (``regmech.bench.hard_models.satellite_hub``): wide coupling."""
+    from regmech.bench.hard_models import satellite_hub
+    return satellite_hub(n)
 
 
 def scenes(quick: bool):

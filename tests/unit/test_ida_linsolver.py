@@ -2,28 +2,14 @@
 
 import numpy as np
 
-import regmech as rm
-from regmech.components import Damper, Fixed, Inertia, SpringDamper, Torque
+from regmech.bench.hard_models import satellite_hub
 from regmech.library import train
 from regmech.solvers.ida import choose_linsolver
 
 
 def _hub(n):
     """A hub joined to n satellites: no ordering gives a narrow band."""
-    m = rm.Model(f"hub_{n}")
-    h = m.add(Inertia("hub", J=1.0))
-    g = m.add(Fixed("ground"))
-    tq = m.add(Torque("drive", tau=rm.signals.Step(height=10.0, start_time=0.1)))
-    m.connect(tq.flange, h.flange_a)
-    for i in range(n):
-        s = m.add(Inertia(f"sat{i}", J=0.1 * (1 + i % 7)))
-        k = m.add(SpringDamper(f"link{i}", c=1e3 * (1 + i % 5), d=1.0))
-        d = m.add(Damper(f"drag{i}", d=0.5))
-        m.connect(h.flange_b, k.flange_a)
-        m.connect(k.flange_b, s.flange_a)
-        m.connect(s.flange_b, d.flange_a)
-        m.connect(d.flange_b, g.flange)
-    return m
+    return satellite_hub(n)
 
 
 def test_small_dense_narrow_band_wide_dense_then_sparse():

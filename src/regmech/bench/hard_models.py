@@ -289,3 +289,26 @@ def pulse_levels(p: Pulse, t_end: float):
 __all__ = ["stretched_chain", "near_rigid_chain", "inertia_ratio_chain", "tiny_mass_chain", "gear_1_1000",
            "belt_oscillator", "belt_answer", "simultaneous_lock", "zero_speed_engagement", "slope_hold",
            "undamped_chain", "energy", "damped_inertia", "piecewise_constant_answer", "pulse_levels"]
+
+
+# ----------------------------------------------------------------------------- wide coupling
+def satellite_hub(n: int) -> rm.Model:
+    """A hub inertia (1 kg m^2) joined to n satellite inertias (0.1-0.7 kg m^2) by spring-dampers
+    (1e3-5e3 N m/rad, 1 N m s/rad), each satellite damped to ground (0.5 N m s/rad); a torque step of
+    10 N m on the hub at 0.1 s. Every satellite row couples to the hub, so no ordering of the unknowns
+    gives a narrow band: the case for IDA's dense and sparse linear solvers (``choose_linsolver``)."""
+    from regmech.components import SpringDamper
+    m = rm.Model(f"hub_{n}")
+    h = m.add(Inertia("hub", J=1.0))
+    g = m.add(Fixed("ground"))
+    tq = m.add(Torque("drive", tau=Step(height=10.0, start_time=0.1)))
+    m.connect(tq.flange, h.flange_a)
+    for i in range(n):
+        s = m.add(Inertia(f"sat{i}", J=0.1 * (1 + i % 7)))
+        k = m.add(SpringDamper(f"link{i}", c=1e3 * (1 + i % 5), d=1.0))
+        d = m.add(Damper(f"drag{i}", d=0.5))
+        m.connect(h.flange_b, k.flange_a)
+        m.connect(k.flange_b, s.flange_a)
+        m.connect(s.flange_b, d.flange_a)
+        m.connect(d.flange_b, g.flange)
+    return m

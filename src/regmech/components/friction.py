@@ -748,10 +748,15 @@ class FrictionSet:
         function is set (the device stays sliding until its own speed leaves zero).
         """
         c = self.c
-        v = y[c.iv]
+        x, v, a, lam_all, _ = c.unpack(y, yp)
         w = self.w_rel(v)
-        lam = y[c.ilam[self.offset:]]
-        sliding = [j for j in range(self.mf) if modes[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale]
+        arel = self.w_rel(a)
+        lam = lam_all[self.offset:]
+        # a device that has just broken away also has w_rel ~ 0, but it accelerates; only one whose
+        # relative acceleration is zero as well can be held (the rank tests below are dense: keep them rare)
+        a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
+        sliding = [j for j in range(self.mf)
+                   if modes[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol]
         stuck = [int(h) for h in np.nonzero(np.asarray(modes) == STUCK)[0]]
         if not sliding or not stuck:
             return []
