@@ -488,6 +488,19 @@ class CompiledSystem:
         S2 = self.Sc.multiply(self.Sc)
         return np.sqrt(np.abs(k) * (S2 @ inv_m))
 
+    def fastest_link(self):
+        """``(device, omega [rad/s], spread)`` of the compliant link with the highest local frequency
+        (``link_frequencies``), ``spread`` = highest over lowest positive one (1 for a single link);
+        None without a link of positive stiffness."""
+        if self.Sc.shape[0] == 0:
+            return None
+        w = self.link_frequencies()
+        pos = w[w > 0]
+        if pos.size == 0:
+            return None
+        i = int(np.argmax(w))
+        return self.structure.compliant[i].device, float(w[i]), float(pos.max() / pos.min())
+
     def stiffness_hint(self, ratio: float = 1e3, always: bool = False) -> str:
         """Names the stiffest link when the link spectrum is stretched (for error messages).
 
@@ -496,21 +509,17 @@ class CompiledSystem:
         with the highest local frequency is named even when the spread is
         below ``ratio``.
         """
-        if self.Sc.shape[0] == 0:
+        link = self.fastest_link()
+        if link is None:
             return ""
-        w = self.link_frequencies()
-        pos = w[w > 0]
-        if pos.size == 0:
-            return ""
-        i = int(np.argmax(w))
-        dev = self.structure.compliant[i].device
-        if pos.size < 2 or pos.max() / pos.min() < ratio:
+        dev, w, spread = link
+        if spread < ratio:
             if not always:
                 return ""
-            return (f" The fastest link, {type(dev).__name__} '{dev.name}' (local mode {w[i] / 2 / np.pi:.3g} Hz, "
-                    f"i.e. {w[i]:.3g} rad/s), sets the step an explicit method needs.")
-        return (f" The stiffest link, {type(dev).__name__} '{dev.name}' (local mode {w[i] / 2 / np.pi:.3g} Hz, "
-                f"{pos.max() / pos.min():.3g} times the softest), is the likely cause: make it rigid "
+            return (f" The fastest link, {type(dev).__name__} '{dev.name}' (local mode {w / 2 / np.pi:.3g} Hz, "
+                    f"i.e. {w:.3g} rad/s), sets the step an explicit method needs.")
+        return (f" The stiffest link, {type(dev).__name__} '{dev.name}' (local mode {w / 2 / np.pi:.3g} Hz, "
+                f"{spread:.3g} times the softest), is the likely cause: make it rigid "
                 f"(Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it.")
 
     def warn_spectrum(self, ratio: float = 1e3):

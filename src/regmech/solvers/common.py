@@ -88,35 +88,18 @@ def check_link_spread(c, rtol, solver: str, stiff_check=True):
     """
     if not stiff_check:
         return
-    if c.Sc.shape[0] < 2:
+    link = c.fastest_link()
+    if link is None:
         return
-    w_all = c.link_frequencies()
-    w = w_all[w_all > 0]
-    spread = (w.max() / w.min()) ** 2 if w.size >= 2 else 1.0
+    dev, w, ratio = link
+    spread = ratio ** 2
     if np.finfo(float).eps * spread > 100 * rtol:
-        i = int(np.argmax(w_all))
-        dev = c.structure.compliant[i].device
         raise SimulationError(
             f"solver '{solver}' on model '{c.model.name}': the stiffest link, {type(dev).__name__} '{dev.name}' "
-            f"(local mode {w_all[i] / 2 / np.pi:.3g} Hz), is {np.sqrt(spread):.3g} times faster than the softest; "
+            f"(local mode {w / 2 / np.pi:.3g} Hz), is {ratio:.3g} times faster than the softest; "
             f"the round-off of its force (eps * {spread:.3g} = {np.finfo(float).eps * spread:.2g} of the other "
             f"forces) exceeds what rtol={rtol:g} allows, so the answer cannot meet the tolerance. Make the link "
             f"rigid (Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it; stiff_check=False runs it anyway.")
-
-
-def fastest_link(c):
-    """``(device, omega [rad/s])`` of the compliant link with the highest local frequency, or None.
-
-    ``CompiledSystem.link_frequencies``: ``sqrt(k sum_j S_rj^2 / m_j)`` per
-    compliant row, the frequency a link would have between its masses alone.
-    """
-    if c.Sc.shape[0] == 0:
-        return None
-    w = c.link_frequencies()
-    if not np.any(w > 0):
-        return None
-    i = int(np.argmax(w))
-    return c.structure.compliant[i].device, float(w[i])
 
 
 class StepBudget:
@@ -158,9 +141,9 @@ class StepBudget:
                  f"h={h:.3g} s)")
         why, stiff = self._diagnosis(stepper, problem, h)
         named = c.stiffness_hint(always=True) if stiff else ""
-        link = fastest_link(c)
+        link = c.fastest_link()
         if not named and link is not None:
-            dev, w = link
+            dev, w, _ = link
             named = (f" The fastest link is {type(dev).__name__} '{dev.name}' (local mode {w / 2 / math.pi:.3g} Hz, "
                      f"about {w / (2 * math.pi) * self.t_end:.3g} periods in the run).")
         return SimulationError(f"{where}: {why}.{named} To finish: {STEP_CAP_REMEDIES}.")

@@ -238,14 +238,32 @@ def hermite(t0, u0, g0, t1, u1, g1, tq):
     return h00 * u0 + h10 * h * g0 + h01 * u1 + h11 * h * g1
 
 
-class KnotClock:
+class _EqualSteps:
+    """Stepping from t to a target in n equal steps, the last one ending on the target exactly (no
+    round-off drift); ``_next_target(t)`` of the subclass gives ``(target, n)`` when a run of steps ends."""
+
+    _n_left = 0
+    _i = 0
+    _h = 0.0
+
+    def next_step(self, t):
+        """(h, t_new) of the next step from t."""
+        if self._n_left == 0:
+            target, n = self._next_target(t)
+            self._t_from, self._target, self._h, self._n_left, self._i = t, target, (target - t) / n, n, 0
+        self._i += 1
+        self._n_left -= 1
+        t_new = self._target if self._n_left == 0 else self._t_from + self._i * self._h
+        return t_new - t, t_new
+
+
+class KnotClock(_EqualSteps):
     """Equal steps of at most ``h_max`` that land exactly on every knot (output instant) and on ``t_bound``.
 
     Each knot interval of length L is cut into ``ceil(L / h_max)`` equal
-    steps; the last one ends on the knot itself (no round-off drift). With
-    ``parts`` > 1 each of those steps is cut into ``parts`` equal ones (the
-    half-step companion of ``regmech.solvers.richardson``: it lands on every
-    instant of the main run).
+    steps; the last one ends on the knot itself. With ``parts`` > 1 each of
+    those steps is cut into ``parts`` equal ones (the half-step companion of
+    ``regmech.solvers.richardson``: it lands on every instant of the main run).
     """
 
     def __init__(self, t0, knots, t_bound, h_max, parts=1):
@@ -254,27 +272,15 @@ class KnotClock:
         self.h_max = float(h_max)
         self.parts = int(parts)
         self._k = 0
-        self._n_left = 0
-        self._i = 0
-        self._t_from = self._target = float(t0)
-        self._h = 0.0
 
-    def next_step(self, t):
-        """(h, t_new) of the next step from t."""
-        if self._n_left == 0:
-            while self._k < len(self.knots) and self.knots[self._k] <= t:
-                self._k += 1
-            target = self.knots[self._k] if self._k < len(self.knots) else self.t_bound
-            span = target - t
-            n = max(1, math.ceil(span / self.h_max * (1 - 1e-12))) * self.parts
-            self._t_from, self._target, self._h, self._n_left, self._i = t, target, span / n, n, 0
-        self._i += 1
-        self._n_left -= 1
-        t_new = self._target if self._n_left == 0 else self._t_from + self._i * self._h
-        return t_new - t, t_new
+    def _next_target(self, t):
+        while self._k < len(self.knots) and self.knots[self._k] <= t:
+            self._k += 1
+        target = self.knots[self._k] if self._k < len(self.knots) else self.t_bound
+        return target, max(1, math.ceil((target - t) / self.h_max * (1 - 1e-12))) * self.parts
 
 
-class GroupedKnotClock:
+class GroupedKnotClock(_EqualSteps):
     """The steps of ``KnotClock(t0, knots, t_bound, h)`` merged ``factor`` at a time (the companion runs of
     ``regmech.solvers.richardson``: steps of exactly 2h or 4h where the main run takes h).
 
@@ -306,27 +312,16 @@ class GroupedKnotClock:
                 acc = 0
         self.main_steps = int(counts.sum())
         self._g = 0
-        self._n_left = 0
-        self._i = 0
-        self._t_from = float(t0)
-        self._h = 0.0
 
     @property
     def knots(self) -> np.ndarray:
         """The instants this clock lands on exactly."""
         return np.array([end for end, _ in self.plan])
 
-    def next_step(self, t):
-        """(h, t_new) of the next step from t."""
-        if self._n_left == 0:
-            while self._g < len(self.plan) - 1 and self.plan[self._g][0] <= t:
-                self._g += 1
-            target, n = self.plan[self._g]
-            self._t_from, self._target, self._h, self._n_left, self._i = t, target, (target - t) / n, n, 0
-        self._i += 1
-        self._n_left -= 1
-        t_new = self._target if self._n_left == 0 else self._t_from + self._i * self._h
-        return t_new - t, t_new
+    def _next_target(self, t):
+        while self._g < len(self.plan) - 1 and self.plan[self._g][0] <= t:
+            self._g += 1
+        return self.plan[self._g]
 
 
 class Stepper:

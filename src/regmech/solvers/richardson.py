@@ -265,8 +265,8 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
         _record(res.stats, tol, order, est, d, labels, stats_h, 0.5, time.perf_counter() - t0,
                 error_companion="h/2 (the run at 2h failed)")
         if not est <= tol:
-            raise AccuracyError(_too_inaccurate(name, model, c, h, order, tol, est, d, None, labels)
-                                + f" (Estimated against a run at h/2: the run at 2h failed: {first_words(exc)})")
+            raise AccuracyError(_too_inaccurate(name, model, c, h, order, tol, est, d, None, labels,
+                                                against=f"h/2 (the run at 2h failed: {first_words(exc, 160)})"))
         return res
     ratio = min(2.0, res.stats.steps / max(1, stats2.steps))
     if ratio < MIN_RATIO:
@@ -325,9 +325,10 @@ def _record(st, tol, order, est, d, labels, stats_c, ratio, elapsed, **more):
                      "error_estimate_time": elapsed, **more})
 
 
-def first_words(exc, n=160):
+def first_words(exc, n=None):
+    """An exception's message on one line (at most ``n`` characters)."""
     text = " ".join(str(exc).split())
-    return text if len(text) <= n else text[: n - 3] + "..."
+    return text if n is None or len(text) <= n else text[: n - 3] + "..."
 
 
 # ---------------------------------------------------------------------- messages
@@ -344,7 +345,7 @@ def _event_sources(model, c) -> str:
 
 
 def _companion_failed(name, model, h, exc) -> str:
-    first = " ".join(str(exc).split())
+    first = first_words(exc)
     return (f"solver '{name}' on model '{model.name}': the companion run at step 2h = {2 * h:.3g} s that estimates "
             f"the error of the run at h = {h:.3g} s failed, so the step h is within a factor 2 of the stability "
             f"limit of the method (or of what it resolves) and its answer cannot be trusted. Use a step h <= "
@@ -352,12 +353,12 @@ def _companion_failed(name, model, h, exc) -> str:
             f"companion run reported: {first}")
 
 
-def _too_inaccurate(name, model, c, h, order, tol, est, d1, d2, labels) -> str:
+def _too_inaccurate(name, model, c, h, order, tol, est, d1, d2, labels, against="2h") -> str:
     lab = labels[d1.index]
     head = (f"solver '{name}' on model '{model.name}': estimated error {est:.2g} of {lab.signal} of "
             f"'{lab.component}' exceeds tol = {tol:g} at step h = {h:.3g} s.")
     how = (f"(Error relative to the range of the {lab.kind} states, worst at t = {d1.t:.6g} s; Richardson "
-           f"estimate against a run at 2h, order {order:g}; see regmech.solvers.richardson.)")
+           f"estimate against a run at {against}, order {order:g}; see regmech.solvers.richardson.)")
     if not est < 1.0:
         return (f"{head} The error is as large as the motion itself: the step does not resolve the solution at "
                 f"all (it may be beyond the stability limit of the method). Use a much smaller step, or a stiff "
