@@ -12,6 +12,9 @@ from regmech.errors import AccuracyError, ParameterError
 from regmech.signals import Ramp
 from regmech.solvers.ode_driver import GroupedKnotClock, KnotClock
 
+# round-off-sensitive: .ci/run runs these again under other OpenBLAS kernels (see the README)
+pytestmark = pytest.mark.roundoff
+
 J, C, D = 1.0, 100.0, 1.0                 # omega_0 = 10 rad/s, zeta = 0.05
 PHI0, W0 = 0.1, -0.5
 T_END, DT_OUT = 2.0, 0.01
@@ -174,19 +177,36 @@ def test_a_2h_estimate_outside_the_asymptotic_range_is_checked_at_h_over_2():
     assert res.stats.extra["error_companion"].startswith("h/2") and res.stats.extra["error_estimate_2h"] > 1e-3
 
 
-def test_expm_round_off_floor_is_refused_with_an_implicit_solver_suggested():
+def test_expm_round_off_floor_is_refused_up_front_naming_the_stiff_link():
+    # the floor comes from the set-up, not the steps: every run shares it, so it is decided from the
+    # spectrum before the run (eps * 1e7^2 = 2.2e-2 > tol), the same on every BLAS build
     from regmech.bench.hard_models import stretched_chain
     chain, signal = stretched_chain(1e7)
     m = chain.to_model(signal)
     with pytest.raises(AccuracyError) as info:
         m.simulate(10.0, dt_out=0.02, solver="expm", h=0.01)
     msg = str(info.value)
-    assert "does not shrink with the step" in msg and "'scipy:Radau'" in msg
-    assert re.search(r"of '(J\d)'", msg)
+    assert "round-off floor" in msg and "'link5'" in msg and "at any step" in msg and "rm.Scene(band_hz" in msg
     # the same chain at a frequency ratio of 1e3 is exact to round-off: a tiny estimate, no refusal
     chain, signal = stretched_chain(1e3)
     res = chain.to_model(signal).simulate(10.0, dt_out=0.02, solver="expm", h=0.01)
     assert res.stats.error_estimate < 1e-9
+    assert res.stats.error_estimate >= res.stats.extra["error_floor"] > 0
+
+
+@pytest.mark.parametrize("ratio", [1e4, 1e6])
+def test_expm_round_off_bound_covers_the_error_against_a_30_digit_answer(ratio):
+    # the a-priori bound must lie above the true error at any step (measured 0.01..0.25 of it); the error is
+    # the same at every step (a set-up floor), so the bound is checked at a coarse and a fine step
+    import numpy as np
+    from regmech.bench.hard_models import stretched_chain
+    chain, signal = stretched_chain(ratio)
+    m = chain.to_model(signal)
+    for h in (0.1, 0.005):
+        res = m.simulate(4.0, dt_out=0.1, solver="expm", h=h)
+        x, _ = chain.exact(res.t, digits=30)
+        err = max(np.max(np.abs(res[f"{nm}.phi"] - x[:, i])) for i, nm in enumerate(chain.names)) / np.ptp(x)
+        assert err <= res.stats.extra["error_floor"] <= res.stats.error_estimate
 
 
 def test_expm_estimate_follows_the_input_hold_error():

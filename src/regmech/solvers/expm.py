@@ -82,15 +82,17 @@ floor below does not shrink with h, and most of it does not even depend on
 h: it comes from the set-up of the scaled matrices (the slow modes of a
 stretched spectrum are resolved only to ``(w_max/w_min)^2 * 1e-16``), so
 two runs with the same set-up share it and their difference cannot show
-it. The companion runs therefore use the *other* scaling on the dense path
-("frequency" when the main run used "energy", and the reverse), whose
-round-off differs; their own mode systems (one more set-up per mode set);
-the sparse path has one scaling only (its floor is 1e-12..1e-11 on the
-library's chains). A floor that dominates the estimate does not shrink
-between the runs at 2h and 4h: the refusal then says so and suggests an
-implicit adaptive solver instead of a smaller step (measured on the hard
-case ``stretched_1e7``: error 1.7e-3 of the range at every step from 0.005
-to 0.02 s, refused).
+it. It is therefore bounded *before* the run from the spectrum
+(``roundoff_floor``: ``eps (w_max/w_min)^2`` with the spread of the links'
+local frequencies; the true floor measured 0.01 to 0.25 of it): a bound
+above ``tol`` is refused up front with ``AccuracyError`` naming the
+stiffest link (the remedy is to make it rigid), and a run's
+``error_estimate`` is never below the bound (``stats.extra["error_floor"]``).
+The companion runs also use the *other* scaling on the dense path, whose
+round-off differs, but whether that difference shows depends on the BLAS
+build, so nothing relies on it (measured on the hard case
+``stretched_1e7``: error 3.3e-3..5.5e-3 of the range at every step from
+1e-3 to 0.1 s, bound 2.2e-2: refused).
 
 Round-off floor (measured): the D's are accurate to about ``nu h * 1e-16``
 (the data of A are rounded, so exp(A h) is defined only to that level), but
@@ -111,7 +113,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
-from ..errors import ParameterError, SimulationError, StructureError
+from ..errors import AccuracyError, ParameterError, SimulationError, StructureError
 from . import register
 from .expm_coefficients import DROP_TOL, UNIT_ROUNDOFF, coefficients, fit_matrix, fit_nodes
 from .ode_driver import KnotClock, Stepper
@@ -757,6 +759,9 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
     c = model.compile()
     if isinstance(t_start, (int, float)) and isinstance(t_end, (int, float)) and t_end > t_start:
         check_linear(c, float(t_start), float(t_end))
+    floor = roundoff_floor(c)
+    if tol is not None and floor is not None and floor[0] > tol:
+        raise AccuracyError(_floor_refusal(c, tol, *floor))
     step = h
     if step is None:
         step = dt_out if dt_out is not None else ((t_end - t_start) / 500.0 if t_end > t_start else 1.0)
@@ -781,7 +786,37 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
 
     return simulate_fixed_step(model, "expm", make_stepper, h=float(step), order=order_p, tol=tol, t_start=t_start,
                                t_end=t_end, dt_out=dt_out, after_main=after_main, max_events=max_events,
-                               chatter_window=chatter_window, chatter_count=chatter_count)
+                               chatter_window=chatter_window, chatter_count=chatter_count,
+                               floor=floor[0] if floor is not None else 0.0)
+
+
+def roundoff_floor(c):
+    """``(bound, device, omega, ratio)``: a-priori bound of expm's round-off floor, or None without links.
+
+    The slow part of the response of a stretched spectrum is resolved only to
+    ``eps (w_max / w_min)^2`` of the range (the set-up of the scaled matrices,
+    not the steps: the floor does not depend on h, so two runs that share a
+    set-up also share it and no companion run can be relied on to show it,
+    whatever the BLAS build). Measured on the hard cases' stretched chains
+    against 30-digit answers, the floor is 0.01 to 0.25 of this bound at link
+    ratios 1e3 to 1e7 and steps 1e-3 to 0.1 s (``BENCHMARKS.md``, expm), so
+    the bound errs on the safe side; ``w_max / w_min`` is the spread of the
+    links' local frequencies (``CompiledSystem.fastest_link``).
+    """
+    link = c.fastest_link()
+    if link is None:
+        return None
+    dev, w, ratio = link
+    return float(np.finfo(float).eps * ratio ** 2), dev, w, ratio
+
+
+def _floor_refusal(c, tol, bound, dev, w, ratio) -> str:
+    return (f"solver 'expm' on model '{c.model.name}': the round-off floor of the matrix exponential on this "
+            f"spectrum, up to eps * {ratio:.3g}^2 = {bound:.2g} of the range, exceeds tol = {tol:g}, at any step. "
+            f"The stiffest link, {type(dev).__name__} '{dev.name}' (local mode {w / 2 / np.pi:.3g} Hz), is "
+            f"{ratio:.3g} times faster than the softest: make it rigid (Shaft(stiffness=None)) or let "
+            f"rm.Scene(band_hz=...) do it, which removes the floor; or loosen tol; or pass tol=None to take the "
+            f"answer unchecked. (See regmech.solvers.expm.roundoff_floor.)")
 
 
 __all__ = ["simulate_expm", "check_linear", "nonlinear_components", "ModeSystem", "Propagator", "Forcing"]

@@ -213,7 +213,7 @@ class _Isolated:
 
 
 def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, tol: float | None,
-                        t_start=0.0, t_end=1.0, dt_out=None, after_main=None, **driver):
+                        t_start=0.0, t_end=1.0, dt_out=None, after_main=None, floor: float = 0.0, **driver):
     """Run a fixed-step method and, unless ``tol`` is None, check its estimated global error.
 
     ``make_stepper(clock, companion)`` returns the stepper factory of
@@ -222,7 +222,9 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
     ``GroupedKnotClock`` for the companions, ``companion=True``); ``order``: p
     of the module docstring; ``after_main(res)``
     completes the result's stats before any companion runs (so nothing of a
-    companion reaches the result); ``driver``: options of ``simulate_ode``.
+    companion reaches the result); ``floor``: an a-priori bound of an error that the companions
+    cannot see because every run shares it (``expm``'s round-off floor): no estimate is below it;
+    ``driver``: options of ``simulate_ode``.
     Raises ``AccuracyError`` when the estimate exceeds ``tol``.
     """
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
@@ -236,6 +238,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
         after_main(res)
     if tol is None:
         return res
+    res.stats.extra["error_floor"] = floor
     t0 = time.perf_counter()
 
     def companion(factor):
@@ -262,6 +265,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
         if half is None:
             raise AccuracyError(_companion_failed(name, model, h, exc)) from exc
         est, d, stats_h = half
+        est = max(est, floor)
         _record(res.stats, tol, order, est, d, labels, stats_h, 0.5, time.perf_counter() - t0,
                 error_companion="h/2 (the run at 2h failed)")
         if not est <= tol:
@@ -277,15 +281,16 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
             f"Use a step h well below the spacing of the events, an adaptive solver ('ida', 'scipy:DOP853'), or "
             f"{_SKIP}.")
     d1 = scaled_difference(main_probe, probe2, scales) if labels else Difference(0.0, 0, t_end, 0)
-    est = d1.value / (ratio ** order - 1.0)
+    est = max(d1.value / (ratio ** order - 1.0), floor)
     _record(res.stats, tol, order, est, d1, labels, stats2, ratio, time.perf_counter() - t0,
             error_companion="2h")
     if not est <= tol and est < 1.0:
         # the run at 2h may lie outside the range where the error goes like h^p (a fast mode near the
         # method's stability limit at 2h but resolved at h): the run at h/2 decides before refusing
         half = _half_step_estimate(main_probe, companion, order, scales, labels, t_end, res.stats.steps)
-        if half is not None and half[0] <= tol:
+        if half is not None and max(half[0], floor) <= tol:
             est_h, d, stats_h = half
+            est_h = max(est_h, floor)
             _record(res.stats, tol, order, est_h, d, labels, stats_h, 0.5, time.perf_counter() - t0,
                     error_companion="h/2 (the estimate against 2h was not in the asymptotic range)",
                     error_estimate_2h=est)
