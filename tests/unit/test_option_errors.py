@@ -111,7 +111,7 @@ def test_an_atol_array_needs_one_entry_per_unknown(solver):
     m = two_masses()
     c = m.compile()
     size = c.N if solver == "ida" else c.ode_size()
-    with pytest.raises(rm.ParameterError, match=f"has {size} "):
+    with pytest.raises(rm.ParameterError, match=f"has {size + 1} entries but model 'two_masses' needs {size}, one"):
         m.simulate(0.1, solver=solver, atol=np.full(size + 1, 1e-8))
     res = m.simulate(0.1, solver=solver, atol=np.full(size, 1e-8))
     assert np.all(np.isfinite(res["J1.w"]))

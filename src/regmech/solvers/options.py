@@ -168,8 +168,8 @@ class AbsTol(Real):
     def check_compiled(self, name, value, c, solver):
         if isinstance(value, np.ndarray) and value.size != self.size(c):
             raise ParameterError(
-                f"solver '{solver}': the {name} array has {value.size} entries but model '{c.model.name}' has "
-                f"{self.size(c)} {self.size_text}s; give one entry per {self.size_text} or a single number")
+                f"solver '{solver}': the {name} array has {value.size} entries but model '{c.model.name}' needs "
+                f"{self.size(c)}, one per {self.size_text}; give that many or a single number")
 
 
 class OptionSet:
