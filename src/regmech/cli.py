@@ -109,7 +109,12 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("sweep", help="parameter study of a scene (regmech sweep -h)")
     sub.add_parser("bench", help="work-precision benchmark of the solvers (regmech bench -h)")
     args = parser.parse_args(argv)
-    return args.func(args)
+    from regmech.errors import RegmechError
+    try:
+        return args.func(args)
+    except RegmechError as exc:         # a refused option or model: the message, not a traceback
+        print(f"regmech {args.cmd}: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

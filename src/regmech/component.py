@@ -24,16 +24,18 @@ power a device absorbs is ``sum_r tau_r * de_r``.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import Any, ClassVar
 
 import numpy as np
 
+from ._numbers import as_real, describe
 from .errors import ParameterError, UnknownFlangeError
 from .ports import DOMAINS, ROTATIONAL, TRANSLATIONAL, VARIABLE_NAMES, Flange
 from .signals import Signal, as_signal
 
 REQUIRED = object()
+#: the smallest positive normal double (2.2e-308): a "positive" or "nonzero" parameter below it is refused
+TINY = float(np.finfo(float).tiny)
 
 
 class Param:
@@ -89,16 +91,23 @@ class Param:
             if np.any(np.diff(arr[:, 0]) <= 0):
                 raise ParameterError(f"{where}: parameter '{self.name}' needs strictly increasing x values")
             return arr
-        if isinstance(value, bool) or not isinstance(value, numbers.Real):
-            raise ParameterError(f"{where}: parameter '{self.name}' must be a real number{self._unit()}, got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
+        number = as_real(value)      # any real scalar: int, float, numpy scalars (np.float32, np.int64), ...
+        if number is None:
+            raise ParameterError(f"{where}: parameter '{self.name}' must be a real number{self._unit()}, got "
+                                 f"{describe(value)}")
+        if not math.isfinite(number):
             raise ParameterError(f"{where}: parameter '{self.name}' must be finite, got {value!r}")
-        bad = {"positive": value <= 0, "nonnegative": value < 0, "nonzero": value == 0}.get(self.check, False)
+        bad = {"positive": number <= 0, "nonnegative": number < 0, "nonzero": number == 0}.get(self.check, False)
         if bad:
             want = {"positive": "> 0", "nonnegative": ">= 0", "nonzero": "non-zero"}[self.check]
             raise ParameterError(f"{where}: parameter '{self.name}' must be {want}{self._unit()}, got {value!r}")
-        return value
+        if self.check in ("positive", "nonzero") and abs(number) < TINY:
+            # a subnormal divisor: its reciprocal overflows to inf (1 / 1e-310), so the equations turn non-finite
+            size = "in magnitude " if number < 0 else ""
+            raise ParameterError(f"{where}: parameter '{self.name}' = {number:g}{self._unit()} is {size}below "
+                                 f"{TINY:.3g}, the smallest normal double, whose reciprocal overflows; give a "
+                                 f"realistic value (SI units)")
+        return number
 
     def _unit(self):
         return f" [{self.unit}]" if self.unit else ""

@@ -21,6 +21,14 @@ class UnknownFlangeError(ModelError, AttributeError):
     """A flange (or attribute) that the component does not have."""
 
 
+class UnknownSignalError(RegmechError, KeyError):
+    """A signal name that a ``Result`` does not have (also a ``KeyError``, as a missing key of a mapping is)."""
+
+    def __str__(self):
+        # KeyError's str() is the repr of its argument (quotes, escaped newlines): show the message as written
+        return str(self.args[0]) if self.args else ""
+
+
 class RegularityError(ModelError):
     """The model breaks a rule of the regular mechanical system."""
 

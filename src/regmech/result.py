@@ -10,11 +10,13 @@ Jacobians, the estimated global error of a fixed-step run, ...),
 from __future__ import annotations
 
 import csv
+import difflib
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import RegmechError
+from ._numbers import describe
+from .errors import RegmechError, UnknownSignalError
 
 MODE_NAMES = {-1: "Backward", 0: "Stuck", 1: "Forward", 2: "Free", 3: "Held"}
 
@@ -70,18 +72,35 @@ class Result:
         return self._traj.names()
 
     def __contains__(self, name: str) -> bool:
-        return name in self._traj._index
+        return isinstance(name, str) and name in self._traj._index
 
     def __getitem__(self, name: str) -> np.ndarray:
+        if not isinstance(name, str):
+            raise UnknownSignalError(
+                f"res[{describe(name)}]: the signals of a result are looked up by name, e.g. res['J1.w'] (res.t "
+                f"is the time axis); the result of model '{self.model_name}' has {len(self.names)} signals, "
+                f"listed by res.names")
         if name in self._cache:
             return self._cache[name]
         val = self._traj.get(name)
         if val is None:
-            close = [n for n in self.names if n.split(".")[0] == name.split(".")[0]]
-            hint = f"; '{name.split('.')[0]}' has {close}" if close else ""
-            raise KeyError(f"no signal '{name}' in the result of model '{self.model_name}'{hint}")
+            raise UnknownSignalError(self._unknown(name))
         self._cache[name] = val
         return val
+
+    def _unknown(self, name: str) -> str:
+        """The message for a signal name that is not in the result: the closest names and the signals of
+        the component it names, if any."""
+        names = self.names
+        msg = f"no signal '{name}' in the result of model '{self.model_name}'"
+        close = difflib.get_close_matches(name, names, n=3, cutoff=0.6)
+        if close:
+            msg += "; did you mean " + " or ".join(f"'{n}'" for n in close) + "?"
+        owner = name.rpartition(".")[0] or name
+        same = [n for n in names if n.rpartition(".")[0] == owner]
+        if same:
+            msg += f" '{owner}' has {', '.join(same)}"
+        return msg + f" (res.names lists all {len(names)} signals)"
 
     def at(self, name: str, t: float) -> float:
         """Linear interpolation of a signal at time t (after the event at t, if any)."""

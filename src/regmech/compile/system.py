@@ -35,6 +35,10 @@ from .assembly import PatternBuilder, kernel_terms
 from .evaluation import EvaluationPlan, JacobianPlan
 from .kernels import KernelGroup, template_for
 
+#: the acceleration-level (KKT) system counts as singular when its smallest LU pivot is below this fraction
+#: of the largest; a mass this many times lighter than another on its own coordinate trips it too
+PIVOT_TOL = 1e-13
+
 
 class CompiledSystem:
     def __init__(self, st: MechanicalStructure):
@@ -268,18 +272,47 @@ class CompiledSystem:
         try:
             lu = spla.splu(K)
             d = np.abs(lu.U.diagonal())
-            if d.size and d.min() <= 1e-13 * d.max():
+            if d.size and d.min() <= PIVOT_TOL * d.max():
                 lu = None
         except RuntimeError:
             lu = None
         if lu is None:
-            msg = self.friction.singular_message(modes) if self.mf else \
-                "the mass matrix restricted to the constraints is singular"
+            msg = self.mass_spread_message()
+            if msg is None:
+                msg = self.friction.singular_message(modes) if self.mf else \
+                    "the mass matrix restricted to the constraints is singular"
             raise StructureError(msg)
         if len(self._kkt_cache) > 256:      # speed-dependent loss tables give many keys
             self._kkt_cache.clear()
         self._kkt_cache[key] = lu
         return lu
+
+    def mass_spread_message(self) -> str | None:
+        """Why the acceleration-level system failed when a mass on its own coordinate is more than
+        ``1 / PIVOT_TOL`` times lighter than the heaviest (None when the spread is within that): the solve
+        of the motion equations then has pivots below ``PIVOT_TOL`` of the largest and the light mass's
+        acceleration is lost (``J = 1e-300`` beside ``J = 1``)."""
+        nodes = self.structure.coord_node
+        massive = np.nonzero(self.mass > 0)[0]
+        if massive.size < 2:
+            return None
+        light = int(massive[np.argmin(self.mass[massive])])
+        heavy = int(massive[np.argmax(self.mass[massive])])
+        ratio = self.mass[heavy] / self.mass[light]
+        if ratio * PIVOT_TOL < 1.0:
+            return None
+
+        def label(k):
+            body = max(nodes[k].bodies, key=lambda b: b.mass)
+            unit = getattr(getattr(type(body), body.mass_param, None), "unit", "")
+            return (f"{type(body).__name__} '{body.name}' ({body.mass_param} = {body.mass:.3g}"
+                    f"{' ' + unit if unit else ''})")
+        name = max(nodes[light].bodies, key=lambda b: b.mass).name
+        return (f"the motion equations cannot be solved in double precision: {label(light)} is {ratio:.3g} "
+                f"times lighter than {label(heavy)}, beyond the {1 / PIVOT_TOL:.0e} that the solve of the "
+                f"accelerations resolves (its acceleration would be lost to round-off). Give '{name}' a "
+                f"realistic value, join it rigidly to a neighbour (Shaft(stiffness=None), IdealGear: the masses "
+                f"then add up), or ground the heavy one (a Fixed, or rm.Scene(..., heavy_ratio=...)).")
 
     def accelerations(self, t, x, v, z, modes):
         """Solve the motion and acceleration-level equations for (a, lam, dz)."""

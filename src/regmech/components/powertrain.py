@@ -14,6 +14,7 @@ from typing import ClassVar
 import numpy as np
 import sympy
 
+from .._numbers import as_real
 from ..component import Device, Param
 from ..errors import ParameterError
 from ..ports import ROTATIONAL, TRANSLATIONAL
@@ -185,8 +186,10 @@ class RoadLoad(Device):
         """From vehicle data: mass m [kg], rolling coefficient c_r [-], drag coefficient
         c_d [-], frontal area [m^2], air density rho [kg/m^3], grade [rad]."""
         for pname, val in (("c_r", c_r), ("c_d", c_d), ("area", area), ("rho", rho)):
-            if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
+            x = as_real(val)        # numpy scalars too
+            if x is None or not math.isfinite(x) or x < 0:
                 raise ParameterError(f"RoadLoad '{name}': {pname} must be a finite number >= 0, got {val!r}")
+        c_r, c_d, area, rho = (as_real(v) for v in (c_r, c_d, area, rho))
         return cls(name, f_roll=c_r * m * g * math.cos(grade), c_drag=0.5 * rho * c_d * area,
                    grade=grade, m=m, g=g, v_eps=v_eps)
 

@@ -1,19 +1,61 @@
 """Solvers, all behind one calling convention: ``simulate(model, t_end, dt_out, solver, **options)``.
 
 Each returns a ``Result`` with the same named signals, events and stats.
+Each registers with the options it takes (``register(name, OptionSet)``);
+the time arguments and the options of every call are checked there, once
+for all solvers (``regmech.solvers.options``).
 """
 
 from __future__ import annotations
 
+import difflib
+import functools
+import inspect
+import time
+
+from .._numbers import describe
 from ..errors import ParameterError
+from .options import MAX_POINTS, TIME_ARGUMENTS, OptionSet, check_motion, check_times
 
 SOLVERS: dict = {}
 
 
-def register(name):
+def register(name: str, options: OptionSet):
+    """Register solver ``fn(model, t_start, t_end, dt_out, **options)`` under ``name``.
+
+    The registered (and returned) function checks its arguments first
+    (``options.check_times``, ``OptionSet.check``), compiles the model,
+    refuses one with nothing to integrate (``options.check_motion``) and
+    checks what needs the compiled model; then it runs ``fn``, which gets
+    Python numbers in range and only the options it declares.
+    """
     def deco(fn):
-        SOLVERS[name] = fn
-        return fn
+        params = inspect.signature(fn).parameters
+        declared = [p for p in params if p not in ("model", "t_start", "t_end", "dt_out")]
+        if sorted(declared) != sorted(options):
+            # a developer's slip: the declared option set and the function must list the same options
+            raise TypeError(f"solver {name!r}: options declared {sorted(options)} but the function takes "
+                            f"{sorted(declared)}")
+
+        @functools.wraps(fn)
+        def run(model, t_start=0.0, t_end=1.0, dt_out=None, max_points=MAX_POINTS, **given):
+            if not callable(getattr(model, "compile", None)):
+                raise ParameterError(f"solver '{name}': simulate() takes a regmech.Model, got {describe(model)}")
+            t_start, t_end, dt_out, _ = check_times(t_start, t_end, dt_out, max_points)
+            values = options.check(name, given)
+            tc = time.perf_counter()
+            c = model.compile()
+            compile_time = time.perf_counter() - tc
+            check_motion(c)
+            options.check_compiled(name, values, c)
+            res = fn(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **values)
+            res.stats.compile_time += compile_time      # the solver found it compiled
+            return res
+
+        run.options = options
+        run.defaults = {p: params[p].default for p in declared}
+        SOLVERS[name] = run
+        return run
     return deco
 
 
@@ -24,11 +66,29 @@ def _load():
 
 
 def simulate(model, t_end, dt_out=None, solver="ida", t_start=0.0, **options):
+    """Run ``model`` with the registered ``solver`` (see ``register`` for what is checked first)."""
     _load()
-    fn = SOLVERS.get(solver)
+    return _solver(solver)(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **options)
+
+
+def _solver(solver):
+    fn = SOLVERS.get(solver) if isinstance(solver, str) else None
     if fn is None:
-        raise ParameterError(f"unknown solver {solver!r}; choose one of {sorted(SOLVERS)}")
-    return fn(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **options)
+        close = difflib.get_close_matches(str(solver), list(SOLVERS), n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ParameterError(f"unknown solver {solver!r}{hint}; choose one of {sorted(SOLVERS)}")
+    return fn
 
 
-__all__ = ["simulate", "SOLVERS", "register"]
+def check_options(t_end, dt_out=None, solver="ida", t_start=0.0, max_points=MAX_POINTS, **options) -> dict:
+    """Check the arguments of ``simulate`` without a model (what needs the compiled model is checked when it
+    runs); returns them normalised. ``rm.sweep`` and the command line call it before starting any run, so a
+    misspelt option stops a study at once instead of failing every run of it."""
+    _load()
+    fn = _solver(solver)
+    t_start, t_end, dt_out, max_points = check_times(t_start, t_end, dt_out, max_points)
+    return {"t_end": t_end, "dt_out": dt_out, "solver": solver, "t_start": t_start, "max_points": max_points,
+            **fn.options.check(solver, options)}
+
+
+__all__ = ["simulate", "check_options", "SOLVERS", "register", "TIME_ARGUMENTS"]

@@ -10,16 +10,10 @@ from ..errors import ParameterError, SimulationError
 
 
 def check_times(t_start, t_end, dt_out):
-    for name, v in (("t_start", t_start), ("t_end", t_end)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ParameterError(f"simulate(): {name} must be a finite number, got {v!r}")
-    if t_end <= t_start:
-        raise ParameterError(f"simulate(): t_end ({t_end}) must be greater than t_start ({t_start})")
-    if dt_out is None:
-        dt_out = (t_end - t_start) / 500.0
-    if not (isinstance(dt_out, (int, float)) and math.isfinite(dt_out) and dt_out > 0):
-        raise ParameterError(f"simulate(): dt_out must be a positive number, got {dt_out!r}")
-    return float(t_start), float(t_end), float(dt_out)
+    """``(t_start, t_end, dt_out)`` as floats, checked (``options.check_times``; the entry has checked the
+    number of output points against the run's ``max_points`` already)."""
+    from .options import check_time_span
+    return check_time_span(t_start, t_end, dt_out)
 
 
 def output_grid(t_start, t_end, dt_out):
@@ -65,6 +59,17 @@ class Recorder:
                                   f"solver settings are unstable there (try a tighter tolerance or a stable solver)")
         modes = np.array(self.modes).reshape(len(self.t), self.mw)
         return np.array(self.t), Y, YP, np.array(self.left), modes
+
+
+def scale_hint(c) -> str:
+    """The lightest mass and the fastest link of the model, for a failure that their scales may explain
+    (a sentence for an error message, with a leading space)."""
+    hint = ""
+    massive = np.nonzero(c.mass > 0)[0]
+    if massive.size:
+        k = int(massive[np.argmin(c.mass[massive])])
+        hint = f" The lightest mass is '{c.structure.coord_names[k]}' ({c.mass[k]:.3g})."
+    return hint + c.stiffness_hint(always=True)
 
 
 # ----------------------------------------------------------------- step budget

@@ -129,11 +129,13 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..errors import ParameterError, SimulationError
+from ..errors import SimulationError
 from . import register
 from .common import StepBudget, check_link_spread
-from .divergence import MAX_GROWTH, check_max_growth
+from .divergence import MAX_GROWTH
 from .ode_driver import EPS, KnotClock, Stepper, hermite, simulate_ode
+from .options import (Choice, Integer, OptionSet, atol_option, chatter_options, max_events_option, max_growth_option,
+                      rtol_option, step_option, stiff_check_option)
 
 SERIES_BELOW = 0.5      # z below which phi1, phi2 come from their Taylor series
 _SERIES_TERMS = 16      # z^16/18! < 1e-20 at z = 0.5
@@ -348,6 +350,10 @@ class ConvolutionStepper(Stepper):
         span = self.t_bound - self.t
         if span <= 0:
             return 0.0
+        if self.u.size == 0:
+            # all motion prescribed: no state whose error needs control, one step covers the segment
+            # (the mean over an empty state below would be NaN and end the segment without its outputs)
+            return span
         sc = self._scale(self.u)
         d0 = np.sqrt(np.mean((self.u / sc) ** 2))
         d1 = np.sqrt(np.mean((self.g / sc) ** 2))
@@ -563,22 +569,30 @@ class ConvolutionStepper(Stepper):
         return super().divergence_remedy()
 
 
-@register("convolution")
+CONVOLUTION_OPTIONS = OptionSet(
+    "the analytic-numerical convolution method on the ODE form (step control by rtol/atol, or a fixed step h)",
+    rtol=rtol_option(1e-6),
+    atol=atol_option(lambda c: c.ode_size(), "state of the ODE form"),
+    h=step_option("fixed step [s] (default: step control by rtol/atol)"),
+    first_step=step_option("first step [s] of the step control (default: estimated)"),
+    max_step=step_option("largest step [s] of the step control (default: no limit)"),
+    jac_every=Integer("accepted steps between Jacobian updates (default: only when needed)", 1, optional=True),
+    corrector=Choice("corrector (default 'implicit': Newton; 'pece': the paper's single pass)", CORRECTORS),
+    max_events=max_events_option(),
+    max_growth=max_growth_option(),
+    max_steps=Integer(f"most accepted steps over the whole run under step control (default {DEFAULT_MAX_STEPS})",
+                      1),
+    stiff_check=stiff_check_option(),
+    **chatter_options(),
+)
+
+
+@register("convolution", CONVOLUTION_OPTIONS)
 def simulate_convolution(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, h=None,
                          first_step=None, max_step=None, jac_every=None, corrector="implicit", max_events=100000,
                          chatter_window=None, chatter_count=50, max_growth=MAX_GROWTH, max_steps=DEFAULT_MAX_STEPS,
-                         stiff_check=True, **unused):
+                         stiff_check=True):
     """The analytic-numerical convolution method (see regmech.solvers.convolution)."""
-    if unused:
-        raise ParameterError(f"solver 'convolution' takes rtol, atol, h, first_step, max_step, jac_every, "
-                             f"corrector, max_events, chatter_window, chatter_count, max_growth, max_steps, stiff_check; got "
-                             f"unknown {sorted(unused)}")
-    for nm, val in (("rtol", rtol), ("h", h), ("first_step", first_step), ("max_step", max_step)):
-        if val is not None and not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
-            raise ParameterError(f"solver 'convolution': {nm} must be a positive number, got {val!r}")
-    if corrector not in CORRECTORS:
-        raise ParameterError(f"solver 'convolution': corrector must be one of {CORRECTORS}, got {corrector!r}")
-    max_growth = check_max_growth("convolution", max_growth)
     atol = rtol * 1e-2 if atol is None else atol
     budget = None if h is not None else StepBudget("convolution", max_steps, t_end)
     if h is None:

@@ -100,8 +100,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ParameterError
-
 #: default factor of growth beyond the explained scale that counts as divergence
 MAX_GROWTH = 1e4
 #: a state beyond this magnitude (or NaN) is a blow-up whatever the history
@@ -116,17 +114,6 @@ FEW_STEPS = 2 * ROUGH_STEPS
 FEW_STEPS_MAX_SIZE = 600
 #: where the forcing of a segment is sampled (fractions of its length: ends and 3-point Gauss nodes)
 _SAMPLES = (0.0, 0.5 - 0.5 * 0.6 ** 0.5, 0.5, 0.5 + 0.5 * 0.6 ** 0.5, 1.0)
-
-
-def check_max_growth(solver: str, max_growth):
-    """Validate the ``max_growth`` option of an ODE-form solver (None switches the growth test off)."""
-    if max_growth is None:
-        return None
-    if isinstance(max_growth, bool) or not isinstance(max_growth, (int, float)) or not max_growth > 1:
-        raise ParameterError(f"solver '{solver}': max_growth must be a number > 1 (the factor of state growth "
-                             f"beyond the start and forcing scale that counts as divergence) or None, "
-                             f"got {max_growth!r}")
-    return float(max_growth)
 
 
 def state_norm(u) -> float:

@@ -43,15 +43,13 @@ worst signal and component and a step that meets ``tol``. The estimate is
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..errors import ParameterError
 from . import register
-from .divergence import MAX_GROWTH, check_max_growth
+from .divergence import MAX_GROWTH
 from .ode_driver import KnotClock, Stepper, hermite
-from .richardson import DEFAULT_TOL, check_tol, simulate_fixed_step
+from .options import OptionSet, chatter_options, max_events_option, max_growth_option, step_option, tol_option
+from .richardson import DEFAULT_TOL, simulate_fixed_step
 
 
 class FixedStepper(Stepper):
@@ -165,19 +163,20 @@ class ABMStepper(FixedStepper):
 
 
 def _fixed_step_solver(name, stepper_cls):
-    @register(name)
+    options = OptionSet(
+        f"a fixed-step method of order {stepper_cls.order}: it takes a step h and a bound tol of its estimated "
+        f"global error instead of rtol/atol",
+        h=step_option("step [s] (default dt_out)"),
+        tol=tol_option(),
+        max_events=max_events_option(),
+        max_growth=max_growth_option(),
+        **chatter_options(),
+    )
+
+    @register(name, options)
     def simulate_fixed(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, tol=DEFAULT_TOL, max_events=100000,
-                       chatter_window=None, chatter_count=50, max_growth=MAX_GROWTH, **unused):
-        if unused:
-            raise ParameterError(f"solver '{name}' takes the options h (step, s), tol, max_events, chatter_window, "
-                                 f"chatter_count, max_growth; got unknown {sorted(unused)}")
-        max_growth = check_max_growth(name, max_growth)
-        tol = check_tol(name, tol)
+                       chatter_window=None, chatter_count=50, max_growth=MAX_GROWTH):
         step = dt_out if h is None else h
-        if step is None:
-            step = (t_end - t_start) / 500.0
-        if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
-            raise ParameterError(f"solver '{name}': the step h must be a positive number, got {h!r}")
 
         def make_stepper(clock, companion):
             def make(problem, t0, u0, t_bound, knots):

@@ -117,7 +117,9 @@ from ..errors import AccuracyError, ParameterError, SimulationError, StructureEr
 from . import register
 from .expm_coefficients import DROP_TOL, UNIT_ROUNDOFF, coefficients, fit_matrix, fit_nodes
 from .ode_driver import KnotClock, Stepper
-from .richardson import DEFAULT_TOL, check_tol, simulate_fixed_step
+from .options import (Choice, Flag, Integer, OptionSet, Real, chatter_options, max_events_option, step_option,
+                      tol_option)
+from .richardson import DEFAULT_TOL, simulate_fixed_step
 
 #: independent coordinates from which E is kept sparse (when the mass matrix is diagonal)
 SPARSE_FROM = 200
@@ -724,47 +726,40 @@ class ExpmEngine:
         return out
 
 
-def _check_options(h, order_p, taylor_r, taylor_tol, drop_tol, unused):
-    if unused:
-        raise ParameterError(f"solver 'expm' takes the options h, order_p, tol, taylor_r, taylor_tol, sparse, "
-                             f"drop_tol, scaling, max_events, chatter_window, chatter_count; got unknown "
-                             f"{sorted(unused)}")
-    if h is not None and not (isinstance(h, (int, float)) and not isinstance(h, bool) and math.isfinite(h) and h > 0):
-        raise ParameterError(f"solver 'expm': the step h must be a positive number [s], got {h!r}")
-    if order_p not in (1, 2, 3) or isinstance(order_p, bool):
-        raise ParameterError(f"solver 'expm': order_p (number of forcing polynomial coefficients per step) must "
-                             f"be 1, 2 or 3, got {order_p!r}")
-    if taylor_r is not None and (not isinstance(taylor_r, int) or isinstance(taylor_r, bool)
-                                 or not 1 <= taylor_r <= 18):
-        raise ParameterError(f"solver 'expm': taylor_r must be an integer 1..18 or None, got {taylor_r!r}")
-    if not (isinstance(taylor_tol, (int, float)) and 0 < taylor_tol < 1):
-        raise ParameterError(f"solver 'expm': taylor_tol must lie in (0, 1), got {taylor_tol!r}")
-    if not (isinstance(drop_tol, (int, float)) and 0 <= drop_tol < 1e-6):
-        raise ParameterError(f"solver 'expm': drop_tol must lie in [0, 1e-6), got {drop_tol!r}")
+EXPM_OPTIONS = OptionSet(
+    "the fixed-step matrix exponential for linear models: it takes a step h and a bound tol of its estimated "
+    "global error instead of rtol/atol",
+    h=step_option("step [s] (default dt_out)"),
+    order_p=Integer("number of forcing polynomial coefficients per step (default 2)", 1, 3),
+    tol=tol_option(),
+    taylor_r=Integer("order of the Taylor start of the exponential (default: chosen from taylor_tol)", 1, 18,
+                     optional=True),
+    taylor_tol=Real("relative truncation error allowed in the Taylor start (default 2^-53)", 0.0, 1.0),
+    sparse=Flag("keep the propagator sparse (default: from the model's size)", optional=True),
+    drop_tol=Real(f"relative size below which sparse entries are dropped (default {DROP_TOL:g})", 0.0, 1e-6,
+                  lo_closed=True),
+    scaling=Choice("scaling of the coordinates (default: energy on the dense path, frequency on the sparse one)",
+                   ("energy", "frequency"), optional=True),
+    max_events=max_events_option(),
+    **chatter_options(),
+)
 
 
-@register("expm")
+@register("expm", EXPM_OPTIONS)
 def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2, tol=DEFAULT_TOL, taylor_r=None,
                   taylor_tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, scaling=None, max_events=100000,
-                  chatter_window=None, chatter_count=50, **unused):
+                  chatter_window=None, chatter_count=50):
     """The step-doubling matrix exponential integrator for linear models (see regmech.solvers.expm).
 
     ``tol`` (default 1e-3): bound of the Richardson estimate of the global error relative to the range of
     each kind of state (``AccuracyError`` beyond it; None: no estimate; see regmech.solvers.richardson).
     """
-    _check_options(h, order_p, taylor_r, taylor_tol, drop_tol, unused)
-    tol = check_tol("expm", tol)
-    if scaling not in (None, "energy", "frequency"):
-        raise ParameterError(f"solver 'expm': scaling must be None, 'energy' or 'frequency', got {scaling!r}")
     c = model.compile()
-    if isinstance(t_start, (int, float)) and isinstance(t_end, (int, float)) and t_end > t_start:
-        check_linear(c, float(t_start), float(t_end))
+    check_linear(c, t_start, t_end)
     floor = roundoff_floor(c)
     if tol is not None and floor is not None and floor[0] > tol:
         raise AccuracyError(_floor_refusal(c, tol, *floor))
-    step = h
-    if step is None:
-        step = dt_out if dt_out is not None else ((t_end - t_start) / 500.0 if t_end > t_start else 1.0)
+    step = dt_out if h is None else h
     options = {"order_p": order_p, "taylor_r": taylor_r, "taylor_tol": float(taylor_tol), "sparse": sparse,
                "drop_tol": float(drop_tol), "t_end": float(t_end), "scaling": scaling}
     engine = ExpmEngine(c, options)

@@ -63,9 +63,18 @@ DROP_TOL = 1e-17
 
 # ------------------------------------------------------------------ error model
 def split_error(r: int, m: int, nu_h: float) -> float:
-    """``eps = 2^m theta^(r+1) / (r+1)!`` with ``theta = nu_h / 2^m`` (per-step relative error)."""
-    theta = nu_h / 2.0 ** m
-    return 2.0 ** m * math.exp((r + 1) * math.log(theta) - math.lgamma(r + 2)) if theta > 0 else 0.0
+    """``eps = 2^m theta^(r+1) / (r+1)!`` with ``theta = nu_h / 2^m`` (per-step relative error).
+
+    Beyond m = 1000 doublings (``2.0 ** m`` overflows at 1024; an absurd ``nu_h`` such as a
+    1e-300 kg m^2 inertia on a spring, 1e150 rad/s, asks for them) it is evaluated in logarithms and
+    saturates at 1e304."""
+    if nu_h <= 0:
+        return 0.0
+    if m <= 1000:
+        theta = nu_h / 2.0 ** m
+        return 2.0 ** m * math.exp((r + 1) * math.log(theta) - math.lgamma(r + 2))
+    log2 = math.log(2.0)
+    return math.exp(min(m * log2 + (r + 1) * (math.log(nu_h) - m * log2) - math.lgamma(r + 2), 700.0))
 
 
 def doublings_for(r: int, nu_h: float, tol: float) -> int:

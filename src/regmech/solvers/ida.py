@@ -24,6 +24,23 @@ from ..errors import SimulationError
 from ..result import Event, Result, Stats
 from . import register
 from .common import Recorder, check_link_spread, check_times, output_grid, signal_breakpoints
+from .options import (Choice, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
+                      rtol_option, stiff_check_option)
+
+IDA_OPTIONS = OptionSet(
+    "SUNDIALS IDA (variable-order BDF on the DAE, local error control by rtol/atol)",
+    rtol=rtol_option(1e-6),
+    atol=atol_option(lambda c: c.N, "unknown of the DAE"),
+    linsolver=Choice("linear solver of IDA's Newton iteration (default: chosen from the model's size and "
+                     "bandwidth)", ("dense", "band", "sparse"), optional=True),
+    max_step=Real("largest step [s] IDA may take (default: no limit)", optional=True),
+    max_order=Integer("highest order of IDA's BDF formulas (default 5)", 1, 5),
+    dense_max=Integer("most unknowns for which the dense linear solver is chosen (default 60)", 0),
+    max_events=max_events_option(),
+    max_steps=Integer("most IDA steps in one output interval (default 50000)", 1),
+    stiff_check=stiff_check_option(),
+    **chatter_options(),
+)
 
 
 class _Ordering:
@@ -151,11 +168,11 @@ def _blame(c, y, yp):
     return names
 
 
-@register("ida")
+@register("ida", IDA_OPTIONS)
 def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
                  max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, stiff_check=True,
                  chatter_window=None,
-                 chatter_count=50, progress=False):
+                 chatter_count=50):
     """IDA with analytic sparse Jacobian and event handling (see module docstring)."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
     tc = time.perf_counter()

@@ -39,7 +39,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import SimulationError
 from ..result import Event, Result, Stats
-from .common import Recorder, check_times, output_grid, signal_breakpoints
+from .common import Recorder, check_times, output_grid, scale_hint, signal_breakpoints
 from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROUGH,  # noqa: F401 (BLOW_UP
                          ROUGH_STEPS, GrowthWatch)                                 # is re-exported)
 
@@ -701,6 +701,12 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
         while stepper.t < t_stop:
             with np.errstate(over="ignore", invalid="ignore"):     # a blow-up is reported just below
                 stepper.step()
+            if not stepper.t > stepper.t_old:
+                # a NaN or non-advancing time would leave this loop (or spin in it) without the outputs
+                raise SimulationError(
+                    f"solver '{name}' could not advance from t={stepper.t_old:.9g} s in model '{c.model.name}' "
+                    f"(the step ended at t={float(stepper.t)!r}): the model's time scales are probably beyond "
+                    f"double precision.{scale_hint(c)} Check the masses and stiffnesses, or try 'ida'.")
             diverged = growth.check(stepper.t, stepper.u)
             if diverged is not None:
                 raise _divergence_error(problem, stepper, name, diverged, growth, explicit, t, u)

@@ -82,7 +82,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import AccuracyError, ParameterError, SimulationError
+from ..errors import AccuracyError, SimulationError
 from .common import check_times, output_grid, signal_breakpoints
 from .ode_driver import GridProbe, GroupedKnotClock, KnotClock, simulate_ode
 
@@ -104,15 +104,6 @@ FLOOR_LIMIT = 1e-2
 HALF_STEP_MAX_STEPS = 100_000
 #: steps(h) / steps(2h) below this: the segments leave no room for a doubled step
 MIN_RATIO = 1.5
-
-
-def check_tol(name: str, tol) -> float | None:
-    if tol is None:
-        return None
-    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (0 < tol < 1):
-        raise ParameterError(f"solver '{name}': tol (bound of the estimated error relative to the range of the "
-                             f"states) must lie in (0, 1), or be None to skip the estimate; got {tol!r}")
-    return float(tol)
 
 
 # ------------------------------------------------------------------------ labels
@@ -395,4 +386,4 @@ def _too_inaccurate(name, model, c, h, order, tol, est, d1, d2, labels, against=
     return f"{head} Use a step h <= {h_new:.3g} s, or an adaptive solver; or {_SKIP}{observed}. {how}"
 
 
-__all__ = ["simulate_fixed_step", "check_tol", "state_labels", "kind_scales", "DEFAULT_TOL"]
+__all__ = ["simulate_fixed_step", "state_labels", "kind_scales", "DEFAULT_TOL"]

@@ -86,11 +86,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
-from ..errors import ParameterError, SimulationError
+from ..errors import RegmechError, SimulationError
 from . import register
-from .common import StepBudget, check_link_spread
-from .divergence import MAX_GROWTH, check_max_growth
+from .common import StepBudget, check_link_spread, scale_hint
+from .divergence import MAX_GROWTH
 from .ode_driver import Stepper, ode_jacobian_pattern, simulate_ode
+from .options import (Integer, OptionSet, atol_option, chatter_options, max_events_option, max_growth_option,
+                      rtol_option, step_option, stiff_check_option)
 
 METHODS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
 
@@ -172,7 +174,16 @@ class ScipyStepper(Stepper):
         return 0 if self.method == "LSODA" else int(getattr(self.solver, "njev", 0) or 0)
 
     def step(self):
-        msg = self.solver.step()
+        try:
+            msg = self.solver.step()
+        except RegmechError:
+            raise
+        except (RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            # scipy's own failures inside a step (an LU that is exactly singular, an overflow) become ours
+            raise SimulationError(
+                f"scipy {self.method} failed at t={self.solver.t:.6g} in model '{self.problem.c.model.name}': "
+                f"{type(exc).__name__}: {exc}.{scale_hint(self.problem.c)} Try 'ida' or check the parameters."
+            ) from exc
         if self.solver.status == "failed":
             raise SimulationError(f"scipy {self.method} failed at t={self.solver.t:.6g} in model "
                                   f"'{self.problem_name}': {msg}. Try another rtol or a stiff solver (ida)")
@@ -217,20 +228,29 @@ def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps):
             f"{problem.c.stiffness_hint(always=True)}")
 
 
+def _scipy_options(method) -> OptionSet:
+    return OptionSet(
+        f"scipy.integrate.{method} on the ODE form (local error control by rtol/atol)",
+        rtol=rtol_option(1e-6),
+        atol=atol_option(lambda c: c.ode_size(), "state of the ODE form"),
+        first_step=step_option("first step [s] (default: scipy's estimate)"),
+        max_step=step_option("largest step [s] (default: no limit)"),
+        max_events=max_events_option(),
+        max_growth=max_growth_option(),
+        max_steps=Integer(f"most accepted steps over the whole run (default {DEFAULT_MAX_STEPS[method]})", 1,
+                          optional=True),
+        stiff_check=stiff_check_option(),
+        **chatter_options(),
+    )
+
+
 def _scipy_solver(method):
     name = f"scipy:{method}"
 
-    @register(name)
+    @register(name, _scipy_options(method))
     def simulate_scipy(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, first_step=None,
                        max_step=None, max_events=100000, chatter_window=None, chatter_count=50,
-                       max_growth=MAX_GROWTH, max_steps=None, stiff_check=True, **unused):
-        if unused:
-            raise ParameterError(f"solver '{name}' takes rtol, atol, first_step, max_step, max_events, "
-                                 f"chatter_window, chatter_count, max_growth, max_steps, stiff_check; got unknown "
-                                 f"{sorted(unused)}")
-        max_growth = check_max_growth(name, max_growth)
-        if not (isinstance(rtol, (int, float)) and rtol > 0):
-            raise ParameterError(f"solver '{name}': rtol must be a positive number, got {rtol!r}")
+                       max_growth=MAX_GROWTH, max_steps=None, stiff_check=True):
         if method not in EXPLICIT_STABILITY:
             # an implicit method would step through a spread whose round-off exceeds rtol and return an
             # answer off by far more than rtol (explicit ones are refused by their stability limit first)

@@ -63,6 +63,8 @@ def sweep(build: Callable, params, outputs, executor=None, out=None, progress: b
         raise ParameterError(f"sweep: build must be a function returning a regmech.Model, got {build!r}")
     if "t_end" not in simulate_options:
         raise ParameterError("sweep: give t_end=<end time [s]> (passed to every model.simulate)")
+    from ..solvers import check_options
+    check_options(**simulate_options)       # a misspelt option or a bad value stops the study before any run
     if not callable(outputs):
         outputs = SignalSummary(outputs)
     if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1):
