@@ -274,3 +274,14 @@ def test_the_half_step_check_is_skipped_on_long_runs(monkeypatch):
     monkeypatch.setattr(richardson, "HALF_STEP_MAX_STEPS", 100)
     with pytest.raises(AccuracyError, match="estimated error"):
         vehicle_launch().simulate(2.0, dt_out=0.01, solver="abm", h=1e-3)
+
+
+@pytest.mark.parametrize("solver", ["euler", "rk4", "abm", "expm"])
+def test_a_step_that_needs_more_than_max_steps_is_refused_before_the_run(solver):
+    # h = 1e-12 over 10 s would be 1e13 steps: a hang, refused up front with the count and the remedies
+    m = oscillator()
+    with pytest.raises(rm.SimulationError, match=r"takes 10,000,000,000,000 steps, more than max_steps=2,000,000"):
+        m.simulate(10.0, dt_out=0.1, solver=solver, h=1e-12)
+    with pytest.raises(rm.SimulationError, match="more than max_steps=50"):
+        m.simulate(1.0, dt_out=0.1, solver=solver, h=0.01, max_steps=50)
+    assert m.simulate(1.0, dt_out=0.1, solver=solver, h=0.01, max_steps=100, tol=None).stats.steps == 100

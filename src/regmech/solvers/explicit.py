@@ -48,7 +48,8 @@ import numpy as np
 from . import register
 from .divergence import MAX_GROWTH
 from .ode_driver import KnotClock, Stepper, hermite
-from .options import OptionSet, chatter_options, max_events_option, max_growth_option, step_option, tol_option
+from .options import (FIXED_MAX_STEPS, OptionSet, chatter_options, fixed_max_steps_option, max_events_option,
+                      max_growth_option, step_option, tol_option)
 from .richardson import DEFAULT_TOL, simulate_fixed_step
 
 
@@ -168,14 +169,15 @@ def _fixed_step_solver(name, stepper_cls):
         f"global error instead of rtol/atol",
         h=step_option("step [s] (default dt_out)"),
         tol=tol_option(),
+        max_steps=fixed_max_steps_option(),
         max_events=max_events_option(),
         max_growth=max_growth_option(),
         **chatter_options(),
     )
 
     @register(name, options)
-    def simulate_fixed(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, tol=DEFAULT_TOL, max_events=100000,
-                       chatter_window=None, chatter_count=50, max_growth=MAX_GROWTH):
+    def simulate_fixed(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, tol=DEFAULT_TOL, max_steps=FIXED_MAX_STEPS,
+                       max_events=100000, chatter_window=None, chatter_count=50, max_growth=MAX_GROWTH):
         step = dt_out if h is None else h
 
         def make_stepper(clock, companion):
@@ -188,13 +190,13 @@ def _fixed_step_solver(name, stepper_cls):
 
         return simulate_fixed_step(model, name, make_stepper, h=float(step), order=stepper_cls.order, tol=tol,
                                    t_start=t_start, t_end=t_end, dt_out=dt_out, after_main=after_main,
-                                   max_events=max_events, chatter_window=chatter_window,
+                                   max_steps=max_steps, max_events=max_events, chatter_window=chatter_window,
                                    chatter_count=chatter_count, explicit=True, max_growth=max_growth)
 
     simulate_fixed.__doc__ = (f"Fixed-step '{name}' on the ODE form (see regmech.solvers.explicit); options h [s] "
                               f"(default dt_out), tol (default {DEFAULT_TOL:g}: bound of the Richardson estimate of "
                               f"the global error relative to the range of each kind of state, AccuracyError beyond "
-                              f"it; None: no estimate, see regmech.solvers.richardson), max_events, chatter_window, "
+                              f"it; None: no estimate, see regmech.solvers.richardson), max_steps, max_events, chatter_window, "
                               f"chatter_count, max_growth.")
     simulate_fixed.__name__ = f"simulate_{name}"
     return simulate_fixed

@@ -117,7 +117,8 @@ from ..errors import AccuracyError, ParameterError, SimulationError, StructureEr
 from . import register
 from .expm_coefficients import DROP_TOL, UNIT_ROUNDOFF, coefficients, fit_matrix, fit_nodes
 from .ode_driver import KnotClock, Stepper
-from .options import (Choice, Flag, Integer, OptionSet, Real, chatter_options, max_events_option, step_option,
+from .options import (FIXED_MAX_STEPS, Choice, Flag, Integer, OptionSet, Real, chatter_options,
+                      fixed_max_steps_option, max_events_option, step_option,
                       tol_option)
 from .richardson import DEFAULT_TOL, simulate_fixed_step
 
@@ -740,6 +741,7 @@ EXPM_OPTIONS = OptionSet(
                   lo_closed=True),
     scaling=Choice("scaling of the coordinates (default: energy on the dense path, frequency on the sparse one)",
                    ("energy", "frequency"), optional=True),
+    max_steps=fixed_max_steps_option(),
     max_events=max_events_option(),
     **chatter_options(),
 )
@@ -747,7 +749,8 @@ EXPM_OPTIONS = OptionSet(
 
 @register("expm", EXPM_OPTIONS)
 def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2, tol=DEFAULT_TOL, taylor_r=None,
-                  taylor_tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, scaling=None, max_events=100000,
+                  taylor_tol=UNIT_ROUNDOFF, sparse=None, drop_tol=DROP_TOL, scaling=None, max_steps=FIXED_MAX_STEPS,
+                  max_events=100000,
                   chatter_window=None, chatter_count=50):
     """The step-doubling matrix exponential integrator for linear models (see regmech.solvers.expm).
 
@@ -780,7 +783,8 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
         res.stats.extra["order_p"] = order_p
 
     return simulate_fixed_step(model, "expm", make_stepper, h=float(step), order=order_p, tol=tol, t_start=t_start,
-                               t_end=t_end, dt_out=dt_out, after_main=after_main, max_events=max_events,
+                               t_end=t_end, dt_out=dt_out, after_main=after_main, max_steps=max_steps,
+                               max_events=max_events,
                                chatter_window=chatter_window, chatter_count=chatter_count,
                                floor=floor[0] if floor is not None else 0.0)
 

@@ -204,7 +204,8 @@ class _Isolated:
 
 
 def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, tol: float | None,
-                        t_start=0.0, t_end=1.0, dt_out=None, after_main=None, floor: float = 0.0, **driver):
+                        t_start=0.0, t_end=1.0, dt_out=None, after_main=None, floor: float = 0.0,
+                        max_steps: int | None = None, **driver):
     """Run a fixed-step method and, unless ``tol`` is None, check its estimated global error.
 
     ``make_stepper(clock, companion)`` returns the stepper factory of
@@ -215,10 +216,19 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
     completes the result's stats before any companion runs (so nothing of a
     companion reaches the result); ``floor``: an a-priori bound of an error that the companions
     cannot see because every run shares it (``expm``'s round-off floor): no estimate is below it;
+    ``max_steps``: a step ``h`` that needs more steps over the run is refused before it starts
+    (a fixed-step run has no other bound on its work);
     ``driver``: options of ``simulate_ode``.
     Raises ``AccuracyError`` when the estimate exceeds ``tol``.
     """
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    needed = math.ceil(round((t_end - t_start) / h, 6))     # 0.3 / 0.1 is 2.9999999999999996
+    if max_steps is not None and needed > max_steps:
+        raise SimulationError(
+            f"solver '{name}' on model '{model.name}': a step h = {h:.3g} s over {t_end - t_start:.6g} s takes "
+            f"{needed:,} steps, more than max_steps={max_steps:,} (minutes to hours of work, and twice that "
+            f"again for the error estimate). Use a larger step (tol checks that it is accurate enough), an "
+            f"adaptive solver ('ida', 'scipy:DOP853'), a shorter run, or raise max_steps.")
     c = model.compile()
     start_state = _mutable_state(c.friction) if c.friction else None
     times = _probe_times(model, t_start, t_end, dt_out) if tol is not None else None
