@@ -363,3 +363,19 @@ def test_references_continuous_inside_the_run_are_accepted():
                 Position("src", phi_ref=Sine(amplitude=0.1, freq_hz=1.0))):
         res = _driven(src).simulate(1.0, dt_out=0.1)
         assert np.all(np.isfinite(res["b.w"]))
+
+
+def test_time_events_restart_the_same_ida_solver(monkeypatch):
+    # a run with hundreds of time events and no mode change builds one IDA solver, not one per
+    # segment (building one costs about a dozen residual calls); the answer is the same
+    import regmech.solvers.ida as ida
+    built = []
+    make = ida._make_solver
+    monkeypatch.setattr(ida, "_make_solver", lambda *a, **k: built.append(1) or make(*a, **k))
+    m = _pulsed(Pulse(amplitude=1.0, period=0.01, width=30.0))
+    res = m.simulate(2.0, dt_out=0.01, solver="ida")
+    assert res.stats.segments >= 400 and len(built) <= 2
+    monkeypatch.setattr(ida, "_reusable", lambda *a: None)
+    fresh = m.simulate(2.0, dt_out=0.01, solver="ida")
+    assert len(built) >= 400
+    np.testing.assert_allclose(res["J.w"], fresh["J.w"], rtol=0, atol=1e-12 * np.max(np.abs(fresh["J.w"])))
