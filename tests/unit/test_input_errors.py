@@ -61,6 +61,7 @@ def _late(value, t_bad=0.7):
 
 LATE_CASES = [
     (lambda f: Torque("src", tau=f), "Torque 'src'", "tau"),
+    (lambda f: Engine("src", torque_map=[(0.0, 1.0), (100.0, 1.0)], throttle=f), "Engine 'src'", "throttle"),
     (lambda f: Force("src", f=f), "Force 'src'", "'f'"),
     (lambda f: Speed("src", w_ref=f), "Speed 'src'", "w_ref"),
     (lambda f: Position("src", phi_ref=f), "Position 'src'", "phi_ref"),
@@ -379,3 +380,22 @@ def test_time_events_restart_the_same_ida_solver(monkeypatch):
     fresh = m.simulate(2.0, dt_out=0.01, solver="ida")
     assert len(built) >= 400
     np.testing.assert_allclose(res["J.w"], fresh["J.w"], rtol=0, atol=1e-12 * np.max(np.abs(fresh["J.w"])))
+
+
+@pytest.mark.parametrize("solver", ["ida", "scipy:RK45"])
+def test_a_jumping_speed_reference_is_named_not_an_empty_contradiction(solver):
+    # on main: "inconsistent start velocities: the fixed start values of [] contradict ..." (RK45)
+    # or a generic error-test failure (ida)
+    from regmech.components import Brake
+    m = rm.Model("held")
+    src = m.add(Speed("src", w_ref=Step(height=1.0, start_time=0.3)))
+    J = m.add(Inertia("J", J=1.0))
+    c = m.add(Clutch("c", fn_max=100.0))
+    J2 = m.add(Inertia("J2", J=1.0))
+    b = m.add(Brake("b", fn_max=1000.0))
+    m.connect(src.flange, J.flange_a)
+    m.connect(J.flange_b, c.flange_a)
+    m.connect(c.flange_b, J2.flange_a)
+    m.connect(J2.flange_b, b.flange)
+    with pytest.raises(rm.SimulationError, match=r"Speed 'src': its reference 'w_ref'.*jumps at t=0.3 s.*Ramp"):
+        m.simulate(1.0, solver=solver)
