@@ -129,7 +129,8 @@ class Clutch(_MuMixin, FrictionDevice):
     peak = Param(1.0, check="positive", doc="static over kinetic friction at w = 0 (>= 1)")
     cgeo = Param(1.0, check="nonnegative", unit="m", doc="geometry constant (effective radius x surfaces)")
     fn_max = Param(check="nonnegative", unit="N", doc="maximum normal force")
-    f_normalized = Param(1.0, check="signal", bounds=(None, 1.0), doc="normalised normal force, <= 1 (<= 0: disengaged)",
+    f_normalized = Param(1.0, check="signal", bounds=(None, 1.0),
+                         doc="normalised normal force, <= 1 (<= 0: disengaged)",
                          bounds_note="; the normal force is fn_max * f_normalized, so 1 is the full force fn_max and "
                                      "values <= 0 disengage the device (mode Free). Raise fn_max for a larger force")
     flanges = (("flange_a", ROTATIONAL), ("flange_b", ROTATIONAL))
