@@ -45,16 +45,26 @@ class Param:
     ``"nonzero"``, ``"signal"`` (number, Signal or callable of t),
     ``"table"`` ((n, 2) points), ``"choice"`` (one of ``choices``),
     ``"any"``. ``optional=True`` also admits None.
+
+    A signal is stored bound to the component and the parameter
+    (``signals.as_signal``): its values are checked where the solvers read
+    them. ``bounds=(lo, hi)`` (None: open) is a signal's documented range,
+    ``bounds_note`` the sentence an error adds to explain it. A table is
+    stored as a read-only copy, so an in-place edit of it raises numpy's
+    "assignment destination is read-only" instead of changing a validated
+    parameter behind the checks; assign a new table to change it.
     """
 
     def __init__(self, default=REQUIRED, check: str = "real", *, optional: bool = False,
-                 unit: str = "", doc: str = "", choices: tuple = ()):
+                 unit: str = "", doc: str = "", choices: tuple = (), bounds=None, bounds_note: str = ""):
         self.default = default
         self.check = check
         self.optional = optional
         self.unit = unit
         self.doc = doc
         self.choices = choices
+        self.bounds = bounds
+        self.bounds_note = bounds_note
         self.name = "?"
 
     def __set_name__(self, owner, name):
@@ -74,7 +84,7 @@ class Param:
         if value is None and self.optional:
             return None
         if self.check == "signal":
-            return as_signal(value, where, self.name)
+            return as_signal(value, comp, self.name, self.bounds, self.bounds_note)
         if self.check == "any":
             return value
         if self.check == "choice":
@@ -90,7 +100,7 @@ class Param:
                 raise ParameterError(f"{where}: parameter '{self.name}' must be finite (x, y) pairs, got {value!r}")
             if np.any(np.diff(arr[:, 0]) <= 0):
                 raise ParameterError(f"{where}: parameter '{self.name}' needs strictly increasing x values")
-            return arr
+            return read_only(arr)
         number = as_real(value)      # any real scalar: int, float, numpy scalars (np.float32, np.int64), ...
         if number is None:
             raise ParameterError(f"{where}: parameter '{self.name}' must be a real number{self._unit()}, got "
@@ -111,6 +121,13 @@ class Param:
 
     def _unit(self):
         return f" [{self.unit}]" if self.unit else ""
+
+
+def read_only(value) -> np.ndarray:
+    """A read-only float copy of an array parameter (validated values cannot be edited in place)."""
+    arr = np.array(value, dtype=float)
+    arr.setflags(write=False)
+    return arr
 
 
 class Component:
@@ -340,5 +357,5 @@ def numeric_params(cls) -> list[str]:
             if p.check in ("real", "positive", "nonnegative", "nonzero")]
 
 
-__all__ = ["Param", "Component", "Body", "Ground", "Device", "Subsystem", "REQUIRED", "Signal",
+__all__ = ["Param", "Component", "Body", "Ground", "Device", "Subsystem", "REQUIRED", "Signal", "read_only",
            "ROTATIONAL", "TRANSLATIONAL"]

@@ -153,6 +153,10 @@ class Model:
         """Build (once, cached until the model changes) the compiled system."""
         if self._compiled is None:
             from .compile.system import compile_model
+            # cross-parameter checks again: a parameter assigned after construction (e.g. a clutch's
+            # mu_table) was checked on its own only
+            for comp in self.components.values():
+                comp.validate()
             self._compiled = compile_model(self)
         return self._compiled
 

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..component import Device, Param
+from ..component import Device, Param, read_only
 from ..errors import ChatteringError, SimulationError, StructureError
 from ..ports import ROTATIONAL, TRANSLATIONAL
 
@@ -118,14 +118,21 @@ class _MuMixin:
 
 class Clutch(_MuMixin, FrictionDevice):
     """Friction clutch (MSL Clutch): ``w_rel = w_b - w_a``, ``tau = flange_b.tau``,
-    ``fn = fn_max * f_normalized(t)`` [N], kinetic torque ``mu(|w_rel|) cgeo fn``."""
+    ``fn = fn_max * f_normalized(t)`` [N], kinetic torque ``mu(|w_rel|) cgeo fn``.
+
+    ``f_normalized`` <= 1; values <= 0 disengage the clutch (mode Free), as in
+    MSL, whose own CoupledClutches drives it with a sine down to -1. A value
+    above 1 (beyond round-off) is refused: raise ``fn_max`` instead."""
 
     mu = Param(0.5, check="nonnegative", doc="kinetic friction coefficient (ignored with mu_table)")
     mu_table = Param(None, check="table", optional=True, doc="(w_rel [rad/s], mu) points for w_rel >= 0")
     peak = Param(1.0, check="positive", doc="static over kinetic friction at w = 0 (>= 1)")
     cgeo = Param(1.0, check="nonnegative", unit="m", doc="geometry constant (effective radius x surfaces)")
     fn_max = Param(check="nonnegative", unit="N", doc="maximum normal force")
-    f_normalized = Param(1.0, check="signal", doc="normalised normal force in [0, 1]")
+    f_normalized = Param(1.0, check="signal", bounds=(None, 1.0),
+                         doc="normalised normal force, <= 1 (<= 0: disengaged)",
+                         bounds_note="; the normal force is fn_max * f_normalized, so 1 is the full force fn_max and "
+                                     "values <= 0 disengage the device (mode Free). Raise fn_max for a larger force")
     flanges = (("flange_a", ROTATIONAL), ("flange_b", ROTATIONAL))
 
     def normal_force(self, t, left=False):
@@ -259,6 +266,8 @@ class LossyGear(FrictionDevice):
                                  f"tau_bf1, tau_bf2), got {self._values['loss_table']!r}")
         if np.any(tab[:, 1:3] <= 0) or np.any(tab[:, 1:3] > 1) or np.any(np.diff(tab[:, 0]) <= 0) or tab[0, 0] < 0:
             raise ParameterError(f"LossyGear '{self.name}': efficiencies must lie in (0, 1] and speeds increase from >= 0")
+        tab = read_only(tab)                 # the validated table, not the caller's (editable) array
+        self._values["loss_table"] = tab
         self._table = tab
         self._ideal = bool(np.allclose(tab, [[0.0, 1.0, 1.0, 0.0, 0.0]], rtol=0, atol=1e-15) and len(tab) == 1)
         self._zero = self._interp(0.0)

@@ -54,8 +54,10 @@ class _Prescribed(Device):
 
 class Position(_Prescribed):
     """Prescribed angle ``phi(flange) - phi(support) = phi_ref(t)`` [rad];
-    the signal's first two derivatives must exist (Ramp/Table corners and
-    Step jumps are handled as time events; a jump in position is refused).
+    the signal's first two derivatives must exist. Its value and its slope
+    must be continuous inside the run: a jump, or a corner of a Ramp or Table,
+    would make the prescribed speed jump (an impulse) and is refused when the
+    run starts; a jump in its second derivative is a time event.
     Exports ``tau`` = torque needed on the support side (``flange.tau = tau``)."""
 
     kind = "position"
@@ -65,7 +67,9 @@ class Position(_Prescribed):
 
 
 class Speed(_Prescribed):
-    """Prescribed speed ``w(flange) - w(support) = w_ref(t)`` [rad/s]."""
+    """Prescribed speed ``w(flange) - w(support) = w_ref(t)`` [rad/s]; ``w_ref`` must be
+    continuous inside the run (a Step would need an impulse and is refused when the run
+    starts; a Ramp's corners are time events)."""
 
     kind = "speed"
     w_ref = Param(check="signal", unit="rad/s", doc="reference speed")

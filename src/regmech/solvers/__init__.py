@@ -15,6 +15,7 @@ import time
 
 from .._numbers import describe
 from ..errors import ParameterError
+from .common import MAX_TIME_EVENTS, check_max_time_events, check_signals
 from .options import MAX_POINTS, TIME_ARGUMENTS, OptionSet, check_motion, check_times
 
 SOLVERS: dict = {}
@@ -38,10 +39,13 @@ def register(name: str, options: OptionSet):
                             f"{sorted(declared)}")
 
         @functools.wraps(fn)
-        def run(model, t_start=0.0, t_end=1.0, dt_out=None, max_points=MAX_POINTS, **given):
+        def run(model, t_start=0.0, t_end=1.0, dt_out=None, max_points=MAX_POINTS, max_time_events=MAX_TIME_EVENTS,
+                **given):
             if not callable(getattr(model, "compile", None)):
                 raise ParameterError(f"solver '{name}': simulate() takes a regmech.Model, got {describe(model)}")
             t_start, t_end, dt_out, _ = check_times(t_start, t_end, dt_out, max_points)
+            # the signals (values in range, time events countable) before anything is compiled
+            check_signals(model, t_start, t_end, check_max_time_events(max_time_events))
             values = options.check(name, given)
             tc = time.perf_counter()
             c = model.compile()
@@ -87,8 +91,10 @@ def check_options(t_end, dt_out=None, solver="ida", t_start=0.0, max_points=MAX_
     _load()
     fn = _solver(solver)
     t_start, t_end, dt_out, max_points = check_times(t_start, t_end, dt_out, max_points)
-    return {"t_end": t_end, "dt_out": dt_out, "solver": solver, "t_start": t_start, "max_points": max_points,
-            **fn.options.check(solver, options)}
+    out = {"t_end": t_end, "dt_out": dt_out, "solver": solver, "t_start": t_start, "max_points": max_points}
+    if "max_time_events" in options:
+        out["max_time_events"] = check_max_time_events(options.pop("max_time_events"))
+    return {**out, **fn.options.check(solver, options)}
 
 
 __all__ = ["simulate", "check_options", "SOLVERS", "register", "TIME_ARGUMENTS"]

@@ -25,8 +25,102 @@ def output_grid(t_start, t_end, dt_out):
     return grid
 
 
+#: default of simulate()'s ``max_time_events``: declared signal breakpoints (time events) in one run.
+#: Each one stops and restarts the integration (IDA: a fresh start at order 1, about a millisecond
+#: for a small model), so 1e5 of them cost minutes; beyond, the run is refused before it starts.
+MAX_TIME_EVENTS = 100_000
+
+
+def _signals(model):
+    """(component, parameter name, signal) of every signal parameter of the model."""
+    from ..signals import Signal
+    for comp in model.components.values():
+        for pname, val in comp._values.items():
+            if isinstance(val, Signal):
+                yield comp, pname, val
+
+
+def check_max_time_events(value) -> int:
+    """``max_time_events`` as a Python int (numpy integers and whole floats accepted), or ParameterError."""
+    from .._numbers import as_integer, describe
+    number = as_integer(value)
+    if number is None or number < 0:
+        raise ParameterError(f"simulate(): max_time_events must be a whole number >= 0 (the most signal "
+                             f"breakpoints, i.e. time events, a run may have), got {describe(value)}")
+    return number
+
+
+def check_signals(model, t_start, t_end, max_time_events=MAX_TIME_EVENTS) -> None:
+    """What the signals of ``model`` ask of a run over [t_start, t_end], checked before it starts.
+
+    * The declared time events (breakpoints of every signal in (t_start, t_end), counted without
+      listing them: ``Signal.count_breakpoints``) must not exceed ``max_time_events``: a
+      ``Pulse(period=1e-8)`` over 1 s would otherwise build 2e8 segments and never return.
+    * A prescribed motion must not need an impulse: a Speed source's reference must not jump, a
+      Position source's reference neither jump nor change its slope abruptly (a Ramp's or Table's
+      corner), inside the run. At ``t_start`` the start values follow the reference, so a jump
+      there is fine.
+
+    Raises ``ParameterError`` for a bad ``max_time_events`` and ``SimulationError`` naming the
+    component, the signal and the remedy otherwise. Times that are not valid are left to the
+    solver's own check.
+    """
+    max_time_events = check_max_time_events(max_time_events)
+    try:
+        t_start, t_end = float(t_start), float(t_end)
+    except (TypeError, ValueError):
+        return
+    if not (math.isfinite(t_start) and math.isfinite(t_end) and t_end > t_start):
+        return
+    counts = [(sig.count_breakpoints(t_start, t_end), comp, pname, sig) for comp, pname, sig in _signals(model)]
+    total = sum(n for n, *_ in counts)
+    if total > max_time_events:
+        n, comp, pname, sig = max(counts, key=lambda entry: entry[0])
+        raise SimulationError(
+            f"simulate(): the signals of model '{model.name}' declare about {total:,} time events in "
+            f"({t_start:g}, {t_end:g}) s, more than max_time_events={max_time_events:,}: {type(comp).__name__} "
+            f"'{comp.name}', signal '{pname}' = {sig!r} alone has {n:,}. Each one stops and restarts the "
+            f"integration (of the order of a millisecond), so the run would not finish in reasonable time. "
+            f"Remedies: where the switching is much faster than the model responds, a smooth signal (e.g. the "
+            f"Pulse's mean value, or a Sine); a shorter run; or simulate(..., max_time_events={total}) to run them "
+            f"all")
+    for comp, pname, sig in _signals(model):
+        kind = comp.device_kind() if callable(getattr(comp, "device_kind", None)) else None
+        if kind in ("speed", "position") and pname == getattr(comp, "ref_param", None):
+            _check_reference(comp, pname, sig, kind, t_start, t_end)
+
+
+def _check_reference(comp, pname, sig, kind, t_start, t_end) -> None:
+    """Refuse a prescribed-motion reference that would need an impulse inside (t_start, t_end)."""
+    force = "force" if getattr(comp, "domain", "") == "translational" else "torque"
+    for b in sig.breakpoints(t_start, t_end):
+        if not t_start < b < t_end:
+            continue
+        levels = [("value", sig.value(b, True), sig.value(b))]
+        if kind == "position":
+            levels.append(("slope", sig.derivative(b, 1, True), sig.derivative(b, 1)))
+        for what, before, after in levels:
+            # corners of a Ramp or Table are continuous to round-off only
+            if abs(after - before) <= 1e-9 * max(abs(before), abs(after)):
+                continue
+            where = f"{type(comp).__name__} '{comp.name}': its reference '{pname}' = {sig!r}"
+            if kind == "speed":
+                raise SimulationError(
+                    f"{where} jumps at t={b:.9g} s from {before:.6g} to {after:.6g}. A prescribed speed that jumps "
+                    f"needs an infinite {force} (an impulse) on the masses it drives, which no solver integrates. "
+                    f"Give a continuous reference (a Ramp, or a Table whose times differ), or drive the mass "
+                    f"with a {'Force' if force == 'force' else 'Torque'} source or through a SpringDamper")
+            raise SimulationError(
+                f"{where} has a {'jump' if what == 'value' else 'corner'} at t={b:.9g} s ({what} from "
+                f"{before:.6g} to {after:.6g}): the speed it prescribes would jump, which needs an infinite "
+                f"{force} (an impulse) that no solver integrates. A Position reference needs a continuous slope: "
+                f"prescribe the speed instead (a Speed source with a Ramp or Table of speeds), use a smooth "
+                f"signal (a Sine, or a callable), or drive through a SpringDamper")
+
+
 def signal_breakpoints(model, t_start, t_end):
-    """Instants in (t_start, t_end) where some signal of the model is not smooth."""
+    """Instants in (t_start, t_end) where some signal of the model is not smooth (their number is
+    bounded before a run by ``check_signals``)."""
     from ..signals import Signal
     pts = set()
     for comp in model.components.values():

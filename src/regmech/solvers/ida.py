@@ -208,13 +208,14 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     # the tolerance: Newton and the error test then fail over and over and IDA crawls
     check_link_spread(c, rtol, "ida", stiff_check)
     opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps)
+    reuse = {}        # the last segment's solver while it may start the next one (see _solve_segment)
     while t < t_end:
         c._t_right = t_stop
         if t_stop - t <= 1e-13 * max(1.0, abs(t)):
             # an event landed on a breakpoint (to round-off): nothing to integrate
             sol = None
         else:
-            sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec)
+            sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse)
         if sol is not None and sol.status == 2:
             t_ev = float(sol.t_events[-1])
             y_ev, yp_ev = np.array(sol.y_events[-1]), np.array(sol.yp_events[-1])
@@ -289,18 +290,39 @@ def _unpermute(sol, order):
                 sol.__dict__[name] = order.from_solver(np.asarray(val))
 
 
-def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
+def _reusable(reuse, modes, atol_vec):
+    """The previous segment's solver, when the next segment may restart it (``_solve_segment``)."""
+    if not reuse or not np.array_equal(reuse["modes"], modes):
+        return None
+    old = reuse["atol"]
+    if np.ndim(old) and not (np.all(atol_vec <= 2.0 * old) and np.all(atol_vec >= 0.5 * old)):
+        return None
+    return reuse["solver"]
+
+
+def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse=None):
     """One IDA run from t to t_stop (or to the first mode event); records the output rows.
 
-    A fresh solver per segment: scikit-sundae's event bookkeeping lives on the
-    events function and accumulates across ``solve`` calls.
+    After a mode event the solver is a fresh one: scikit-sundae's event bookkeeping lives on the
+    events function and accumulates across ``solve`` calls. After a time event with the modes
+    unchanged (``reuse``, kept by the caller) the previous solver restarts, if the absolute
+    tolerances that the forces present call for are within a factor 2 of those it was built with:
+    building one costs about as much as a dozen residual calls, which on a run with thousands of
+    time events (a Pulse) was a sixth of the time.
     """
     with_events = bool(c.friction) and c.friction.n_events > 0
     rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps = opts
     atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max)
-    solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order, max_steps)
+    solver = _reusable(reuse, modes, atol_vec)
+    if solver is None:
+        solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
+                              max_steps)
+        if reuse is not None:
+            reuse.update(solver=solver, modes=np.array(modes), atol=atol_vec)
     tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end
-    inner = grid[(grid > t + tol) & (grid < t_stop - tol)]
+    # the grid points inside (t, t_stop), found by bisection: a run with many segments does not
+    # scan the whole grid for each of them
+    inner = grid[np.searchsorted(grid, t + tol, side="right"):np.searchsorted(grid, t_stop - tol, side="left")]
     tspan = np.concatenate([[t], inner, [t_stop]])
     record = np.ones(len(tspan), bool)
     if len(tspan) == 2:       # two times would make IDA return every internal step
@@ -313,6 +335,8 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec):
     except (RuntimeError, ValueError, KeyError) as exc:
         raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "
                               f"involved: {_blame(c, y, yp)}") from exc
+    if reuse is not None and sol.status not in (0, 1):
+        reuse.clear()            # a mode event (its bookkeeping stays on the events function) or a failure
     stats.segments += 1
     stats.rhs_calls += int(getattr(sol, "nfev", 0) or 0)
     stats.jac_calls += int(getattr(sol, "njev", 0) or 0)

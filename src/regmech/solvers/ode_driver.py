@@ -630,7 +630,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     while True:
         c._t_right = t_stop
         problem.modes = modes
-        inner = grid[(grid > t) & (grid < t_stop)]
+        # grid points inside (t, t_stop) by bisection (not a scan of the grid per segment)
+        inner = grid[np.searchsorted(grid, t, side="right"):np.searchsorted(grid, t_stop, side="left")]
         knots = np.append(inner, t_stop)
         if t < t_stop:
             end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name,
