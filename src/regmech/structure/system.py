@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import maximum_bipartite_matching, min_weight_full_bipartite_matching
+from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from ..component import Device
 from ..errors import ModelError, StructureError
-from .pantelides import pantelides, structural_matching
+from .pantelides import min_weight_column_matching, pantelides, structural_matching
 from .regularity import check_model
 from .topology import Node
 
@@ -157,18 +157,21 @@ def _levels(st: MechanicalStructure) -> dict:
             touching.setdefault(int(k), []).append(("lam", j))
     eqs: dict = {}
     derivative = {}
+    # Variables in a fixed order (lists, not sets): the search of ``pantelides`` takes the
+    # first eligible one, so the motion equation of a coordinate prefers its own acceleration
+    # and the result and its cost do not depend on string hashing (PYTHONHASHSEED).
     for k in sorted(touching):
         derivative[("x", k)] = ("dx", k)
         derivative[("v", k)] = ("dv", k)
-        eqs[("kin", k)] = {("dx", k), ("v", k)}
-        eqs[("motion", k)] = {("dv", k), ("x", k), ("v", k), *touching[k]}
+        eqs[("kin", k)] = [("dx", k), ("v", k)]
+        eqs[("motion", k)] = [("dv", k), ("x", k), ("v", k), *touching[k]]
     for j, row in enumerate(cons):
         if j < npos:
-            eqs[("con", j)] = {("x", int(k)) for k in row.cols}
+            eqs[("con", j)] = [("x", int(k)) for k in row.cols]
         elif j < npos + nspd:
-            eqs[("con", j)] = {("v", int(k)) for k in row.cols}
+            eqs[("con", j)] = [("v", int(k)) for k in row.cols]
         else:
-            eqs[("con", j)] = {("dv", int(k)) for k in row.cols} | {("lam", j)}
+            eqs[("con", j)] = [("dv", int(k)) for k in row.cols] + [("lam", j)]
     # structural nonsingularity of the original system (all derivatives as unknowns)
     # (Pantelides needs every equation matchable when all derivatives count as unknowns)
     un_eq = []
@@ -217,16 +220,11 @@ def _select_dummies(G: sp.csr_matrix, prefer_state: np.ndarray, rows: list[Row],
         mask[list(exclude)] = 0.0
         G = sp.csr_matrix(G @ sp.diags(mask))
         G.eliminate_zeros()
-    W = G.copy().astype(float)
-    W.data = 1.0 + 9.0 * prefer_state[W.indices] + 1e-9 * W.indices   # small tie-break: stable choice
-    try:
-        match = min_weight_full_bipartite_matching(W)
-    except ValueError:
-        match = None
-    if match is not None:
-        ri, ci = match
-        cols = np.empty(m, dtype=int)
-        cols[np.asarray(ri)] = np.asarray(ci)
+    # column weights: 1 free, 5.5 a fixed start velocity, 10 a fixed start position; the tiny
+    # index term makes them distinct (a unique, stable choice)
+    weight = 1.0 + 9.0 * prefer_state + 1e-9 * np.arange(n)
+    cols = min_weight_column_matching(G, weight)
+    if cols is not None:
         block = G[:, cols].tocsc()
         try:
             lu = sp.linalg.splu(block)
@@ -249,10 +247,14 @@ def _nonsingular(block) -> bool:
 
 def _raise_redundant(G: sp.csr_matrix, rows: list[Row]):
     import scipy.linalg as la
-    A = G.toarray()
-    if A.shape[0] > 4000:
+    if G.shape[0] > 4000:
+        # a dense rank analysis would need O(m^2) memory (800 MB for a 10,000-link chain)
+        names = sorted({_device_label(r) for r in rows})
         raise StructureError("constraints are redundant or conflicting (rank-deficient); devices involved: " +
-                             ", ".join(sorted({_device_label(r) for r in rows})[:20]))
+                             ", ".join(names[:20]) + (f" and {len(names) - 20} more" if len(names) > 20 else "") +
+                             ". Fix: remove the device that fixes a motion a second time (two rigid links or gears "
+                             "in parallel, a closed loop of gears), or make one compliant.")
+    A = G[:, np.unique(G.indices)].toarray()          # only the coordinates the rows touch
     # rows that are combinations of others: pivoted QR of A^T orders rows by independence
     q, r, piv = la.qr(A.T, pivoting=True, mode="economic")
     d = np.abs(np.diag(r))
