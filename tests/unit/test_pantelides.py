@@ -35,7 +35,6 @@ def test_structural_matching_reports_unmatched():
 
 # -- long rigid chains: iterative graph walks, linear cost (issue 13, item 8) --------------------
 import sys
-import time
 from contextlib import contextmanager
 
 import numpy as np
