@@ -192,3 +192,17 @@ def test_pantelides_work_per_link_stays_flat_from_1000_to_10000_links(order):
         assert all(counts[("con", j)] == 2 for j in range(n))
         per_link[n] = calls[0] / n
     assert per_link[10000] < 1.2 * per_link[1000]
+
+
+def test_scene_merges_ten_thousand_rigid_shafts_into_one_body():
+    """Scene reduction and node building at scale: ``merge_rigid`` joins the 10,001 masses of a
+    rigid Shaft chain into one point (node building scanned a list of the bodies already on a
+    point for each new one, and the gear pass rebuilt the set of grounded points for each gear)."""
+    n, J, tau, w0 = 10000, 1e-3, 2.0, 1.0
+    m, speed = rigid_chain(n, "shaft", J, tau, w0)
+    sc = rm.Scene(m, t_end=0.5, outputs=[f"J{n}.w"])
+    red = sc.reduction
+    assert sum(a.kind == "merge_rigid" for a in red.actions) == n
+    assert red.model.compile().n == 1
+    res = sc.simulate(dt_out=0.25)
+    assert np.allclose(res[f"J{n}.w"], w0 + tau * res.t / (J * (n + 1)), rtol=1e-9, atol=0)

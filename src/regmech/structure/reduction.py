@@ -238,7 +238,7 @@ def merge_rigid(model, outputs):
         if not isinstance(comp, IdealGear) or comp.name in needed or comp.name in ed.removed:
             continue
         na, nb = node_of[comp.flange_a], node_of[comp.flange_b]
-        if node_of[comp.support].index not in {n.index for n in nodes if n.grounded}:
+        if not node_of[comp.support].grounded:
             continue
         for near, far, factor in ((na, nb, 1.0 / comp.ratio), (nb, na, comp.ratio)):
             far_devs = [d for d in far.devices() if d is not comp]
