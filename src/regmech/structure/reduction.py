@@ -240,7 +240,7 @@ def merge_rigid(model, outputs):
         if not isinstance(comp, IdealGear) or comp.name in needed or comp.name in ed.removed:
             continue
         na, nb = node_of[comp.flange_a], node_of[comp.flange_b]
-        if node_of[comp.support].index not in {n.index for n in nodes if n.grounded}:
+        if not node_of[comp.support].grounded:
             continue
         for near, far, factor in ((na, nb, 1.0 / comp.ratio), (nb, na, comp.ratio)):
             far_devs = [d for d in far.devices() if d is not comp]
@@ -327,17 +327,19 @@ def rigidify(model, outputs, band_hz, factor=10.0):
     return ed.build(), actions
 
 
+def _start_position(model, node) -> float:
+    """Position of ``node`` at the model's consistent start (the ground's position on the ground)."""
+    c = model.compile()
+    k = c.structure.node_coord[node.index]
+    if k is None:
+        return node.ground_position
+    y, _ = c.initial_y(0.0)
+    return float(y[c.ix][k])
+
+
 def _start_deflection(model, na, nb) -> float:
     """x_b - x_a at the model's consistent start (0 when either side is the ground)."""
-    c = model.compile()
-    y, _ = c.initial_y(0.0)
-    x = y[c.ix]
-    st = c.structure
-
-    def pos(n):
-        k = st.node_coord[n.index]
-        return n.ground_position if k is None else x[k]
-    return float(pos(nb) - pos(na))
+    return _start_position(model, nb) - _start_position(model, na)
 
 
 def _rigid_shaft(comp):
@@ -369,7 +371,10 @@ def ground_heavy(model, outputs, ratio=1e4):
             continue
         fl = body.flange_list[0]
         if w0 == 0.0:
-            fixed = Fixed(f"ground_{abs(hash(body.name)) % 10**8}", domain=body.domain)
+            # grounded where it starts: a Fixed at 0 would contradict a start position (an error) and
+            # change the deflection of the links to it
+            fixed = Fixed(f"ground_{abs(hash(body.name)) % 10**8}", domain=body.domain,
+                          phi0=_start_position(model, node))
             ed.extra.append(fixed)
             ed.extra_links.append((fl.full_name, f"{fixed.name}.flange"))
             what = "fixed (it starts at rest)"

@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import maximum_bipartite_matching, min_weight_full_bipartite_matching
+from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from ..component import Device
 from ..errors import ModelError, StructureError
-from .pantelides import pantelides, structural_matching
+from .pantelides import min_weight_column_matching, pantelides, structural_matching
 from .regularity import check_model
 from .topology import Node
 
@@ -87,9 +87,72 @@ def _device_label(row: Row) -> str:
     return f"{type(row.device).__name__} '{row.device.name}'"
 
 
+#: Start values that must agree (several masses on one point, a mass on the ground, fixed
+#: values against rigid constraints and motion sources) may differ by this much relative to
+#: ``max(1, |values|)``: equal up to round-off passes, a real contradiction is refused.
+START_RTOL = 1e-9
+
+LEVELS = ("position", "velocity")
+_PLURAL = ("positions", "velocities")
+
+
+def start_label(body, level: int) -> str:
+    """``Inertia 'J1' (w0=5)``: a mass and its fixed start value at ``level`` (0 position, 1 velocity)."""
+    return f"{type(body).__name__} '{body.name}' ({body.start_params[level]}={body.start[level]:.10g})"
+
+
+def start_conflict(level: int, problems: list[str], fixes: list[str], t: float | None = None) -> StructureError:
+    """The one error for fixed start values that cannot all be met (a mass on the ground,
+    masses sharing a point, rigid devices and gears, motion sources): what contradicts
+    what, then the fix(es)."""
+    when = "" if t is None else f" at t={t:g}"
+    shown = problems[:8] + ([f"... and {len(problems) - 8} more"] if len(problems) > 8 else [])
+    fix = "; ".join(dict.fromkeys(fixes))
+    return StructureError(f"inconsistent start {_PLURAL[level]}{when}: " + "; ".join(shown) + f". Fix: {fix}")
+
+
+_FIX_GROUND = ("a mass connected to a Fixed stays at the ground's position at rest: drop its start value (or give "
+               "the ground's), or join it to the ground through a compliant device (a Spring, or a Shaft with a "
+               "stiffness) if it is meant to move")
+_FIX_POINT = "masses joined at one point share one {what}: give it on one of them only"
+
+
+def _node_starts(node: Node) -> tuple[list[float], list[tuple[int, str, str]]]:
+    """Fixed start (position, velocity) of a node (NaN: free) and its contradictions.
+
+    A node pins one position and one velocity: every mass on it with a start
+    value, and the ground (its ``phi0``/``s0``, at rest), must agree to ``START_RTOL``.
+    Returns ``[x0, v0]`` and ``(level, problem, fix)`` triples.
+    """
+    out, problems = [np.nan, np.nan], []
+    for level in (0, 1):
+        pins = [(start_label(b, level), b.start[level]) for b in node.bodies if b.start[level] is not None]
+        if node.grounds and level == 0:
+            pins = [(f"{type(g).__name__} '{g.name}' ({g.position_param}={g.position:.10g})", g.position)
+                    for g in node.grounds] + pins
+        elif node.grounds and pins:
+            g = node.grounds[0]
+            pins.insert(0, (f"{type(g).__name__} '{g.name}' (at rest)", 0.0))
+        if not pins:
+            continue
+        ref = pins[0][1]
+        if any(abs(v - ref) > START_RTOL * max(1.0, abs(v), abs(ref)) for _, v in pins[1:]):
+            labels = ", ".join(label for label, _ in pins)
+            if node.grounds:
+                problems.append((level, f"{labels} meet at one point ({node.label()}) but disagree", _FIX_GROUND))
+            else:
+                problems.append((level, f"{labels} meet at one point ({node.label()}) but disagree",
+                                 _FIX_POINT.format(what=LEVELS[level])))
+        out[level] = ref
+    return out, problems
+
+
 def _coordinates(nodes: list[Node]):
     coord_node, node_coord, mass, names, p0, v0 = [], {}, [], [], [], []
+    problems: list[tuple[int, str, str]] = []
     for node in nodes:
+        (x0, dx0), bad = _node_starts(node)
+        problems += bad
         if node.grounded:
             node_coord[node.index] = None
             continue
@@ -98,21 +161,88 @@ def _coordinates(nodes: list[Node]):
         coord_node.append(node)
         mass.append(sum(b.mass for b in node.bodies))
         names.append(node.bodies[0].name if node.bodies else node.label())
-        fixed = [[], []]
-        for b in node.bodies:
-            for j, val in enumerate(b.start):
-                if val is not None:
-                    fixed[j].append((b, val))
-        for j, store in enumerate((p0, v0)):
-            vals = fixed[j]
-            if vals and any(abs(v - vals[0][1]) > 1e-12 * max(1.0, abs(vals[0][1])) for _, v in vals):
-                what = ("position", "velocity")[j]
-                raise ModelError(
-                    "rigidly joined masses " + ", ".join(f"'{b.name}'" for b, _ in vals) +
-                    f" have different fixed start {what}s " + ", ".join(f"{v:g}" for _, v in vals) +
-                    "; give the start value on one of them only")
-            store.append(vals[0][1] if vals else np.nan)
+        p0.append(x0)
+        v0.append(dx0)
+    if problems:
+        level = min(lv for lv, _, _ in problems)
+        raise start_conflict(level, [p for lv, p, _ in problems if lv == level],
+                             [f for lv, _, f in problems if lv == level])
     return coord_node, node_coord, np.array(mass, dtype=float), names, np.array(p0, float), np.array(v0, float)
+
+
+def _fixed_label(node: Node, level: int, value: float) -> str:
+    """The mass whose start value a coordinate keeps (``Inertia 'J1' (w0=5)``), or the mass and
+    the value when it was given otherwise (``Inertia 'J1' (w=5)``)."""
+    for b in node.bodies:
+        if b.start[level] is not None and b.start[level] == value:
+            return start_label(b, level)
+    if node.bodies:
+        b = node.bodies[0]
+        return f"{type(b).__name__} '{b.name}' ({b.var_names()[level]}={value:.10g})"
+    return f"the point {node.label()} ({LEVELS[level]} {value:.10g})"
+
+
+def constraint_start_conflict(st: "MechanicalStructure", level: int, G: sp.spmatrix, rows: list, bad: np.ndarray,
+                              fixed: np.ndarray, refs: dict, t: float) -> StructureError:
+    """The error for fixed start values that the constraint rows ``G`` (level 0: positions,
+    1: velocities) cannot meet at ``t``, naming each conflicting group.
+
+    A group is a connected set of constraint rows and coordinates (a rigidly joined
+    set of masses with its devices). For each group holding an unmet row it names the
+    masses whose fixed start values are involved, the devices (a source with its
+    reference value ``refs[row]``, a device joined to the ground), and the fix.
+    ``rows`` are the ``Row`` objects of ``G``'s rows; ``fixed`` holds the kept value of each
+    coordinate (NaN: free): start values, or values given to ``linearize(at=...)``.
+    """
+    from scipy.sparse.csgraph import connected_components
+    m, n = G.shape
+    C = sp.coo_matrix(G)
+    adj = sp.coo_matrix((np.ones(C.nnz), (C.row, m + C.col)), shape=(m + n, m + n))
+    _, label = connected_components(adj, directed=False)
+    problems, fixes = [], []
+    for group in dict.fromkeys(int(label[i]) for i in bad):
+        members = np.nonzero(label[:m] == group)[0]
+        coords = [k for k in np.nonzero(label[m:] == group)[0] if np.isfinite(fixed[k])]
+        masses = [_fixed_label(st.coord_node[k], level, fixed[k]) for k in coords]
+        devices, sources, to_ground, stuck = [], [], False, False
+        for i in members:
+            dev = rows[i].device
+            name = f"{type(dev).__name__} '{dev.name}'"
+            if i in refs:
+                devices.append(f"{name} ({refs[i]})")
+                sources.append(name)
+            elif dev.device_kind() == "friction":
+                devices.append(f"{name} (stuck)")
+                stuck = True
+            elif len(rows[i].cols) == 1:
+                # a rigid row on one coordinate: its other flanges are on the ground
+                devices.append(f"{name} (to the ground)")
+                to_ground = True
+            else:
+                devices.append(name)
+        devices, sources = list(dict.fromkeys(devices)), list(dict.fromkeys(sources))
+        shown = ", ".join(devices[:6]) + (f" and {len(devices) - 6} more devices" if len(devices) > 6 else "")
+        if masses:
+            verb = "contradicts" if len(masses) == 1 else "cannot all hold with"
+            problems.append(f"{', '.join(masses[:8])}{' ...' if len(masses) > 8 else ''} {verb} {shown}")
+        else:
+            problems.append(f"the constraints of {shown} contradict each other")
+        what = LEVELS[level]
+        if sources:
+            fixes.append(f"drop the start {what} of the masses driven by {', '.join(sources)} (the source sets it) "
+                         f"or make it equal to what the source prescribes at t={t:g}")
+        if to_ground:
+            fixes.append(f"a mass rigidly joined to the ground is held by it: drop its start {what}")
+        if stuck:
+            fixes.append("a stuck friction device locks the masses on its sides together: give the speed on one "
+                         "side only, or take a mode in which it slips")
+        if masses and ((len(masses) > 1 and not stuck) or not (sources or to_ground or stuck)):
+            fixes.append(f"give the start {what} on one mass of each rigidly joined group only (or none); the "
+                         f"devices fix the others (through a gear w_b = w_a / ratio)")
+        if not masses:
+            fixes.append("check the references of the motion sources at that time (a speed reference must not "
+                         "jump while a rigid group is held)")
+    return start_conflict(level, problems, fixes, t)
 
 
 def _device_rows(devices, node_of, node_coord, n) -> dict[str, list[Row]]:
@@ -157,18 +287,21 @@ def _levels(st: MechanicalStructure) -> dict:
             touching.setdefault(int(k), []).append(("lam", j))
     eqs: dict = {}
     derivative = {}
+    # Variables in a fixed order (lists, not sets): the search of ``pantelides`` takes the
+    # first eligible one, so the motion equation of a coordinate prefers its own acceleration
+    # and the result and its cost do not depend on string hashing (PYTHONHASHSEED).
     for k in sorted(touching):
         derivative[("x", k)] = ("dx", k)
         derivative[("v", k)] = ("dv", k)
-        eqs[("kin", k)] = {("dx", k), ("v", k)}
-        eqs[("motion", k)] = {("dv", k), ("x", k), ("v", k), *touching[k]}
+        eqs[("kin", k)] = [("dx", k), ("v", k)]
+        eqs[("motion", k)] = [("dv", k), ("x", k), ("v", k), *touching[k]]
     for j, row in enumerate(cons):
         if j < npos:
-            eqs[("con", j)] = {("x", int(k)) for k in row.cols}
+            eqs[("con", j)] = [("x", int(k)) for k in row.cols]
         elif j < npos + nspd:
-            eqs[("con", j)] = {("v", int(k)) for k in row.cols}
+            eqs[("con", j)] = [("v", int(k)) for k in row.cols]
         else:
-            eqs[("con", j)] = {("dv", int(k)) for k in row.cols} | {("lam", j)}
+            eqs[("con", j)] = [("dv", int(k)) for k in row.cols] + [("lam", j)]
     # structural nonsingularity of the original system (all derivatives as unknowns)
     # (Pantelides needs every equation matchable when all derivatives count as unknowns)
     un_eq = []
@@ -217,16 +350,11 @@ def _select_dummies(G: sp.csr_matrix, prefer_state: np.ndarray, rows: list[Row],
         mask[list(exclude)] = 0.0
         G = sp.csr_matrix(G @ sp.diags(mask))
         G.eliminate_zeros()
-    W = G.copy().astype(float)
-    W.data = 1.0 + 9.0 * prefer_state[W.indices] + 1e-9 * W.indices   # small tie-break: stable choice
-    try:
-        match = min_weight_full_bipartite_matching(W)
-    except ValueError:
-        match = None
-    if match is not None:
-        ri, ci = match
-        cols = np.empty(m, dtype=int)
-        cols[np.asarray(ri)] = np.asarray(ci)
+    # column weights: 1 free, 5.5 a fixed start velocity, 10 a fixed start position; the tiny
+    # index term makes them distinct (a unique, stable choice)
+    weight = 1.0 + 9.0 * prefer_state + 1e-9 * np.arange(n)
+    cols = min_weight_column_matching(G, weight)
+    if cols is not None:
         block = G[:, cols].tocsc()
         try:
             lu = sp.linalg.splu(block)
@@ -249,10 +377,14 @@ def _nonsingular(block) -> bool:
 
 def _raise_redundant(G: sp.csr_matrix, rows: list[Row]):
     import scipy.linalg as la
-    A = G.toarray()
-    if A.shape[0] > 4000:
+    if G.shape[0] > 4000:
+        # a dense rank analysis would need O(m^2) memory (800 MB for a 10,000-link chain)
+        names = sorted({_device_label(r) for r in rows})
         raise StructureError("constraints are redundant or conflicting (rank-deficient); devices involved: " +
-                             ", ".join(sorted({_device_label(r) for r in rows})[:20]))
+                             ", ".join(names[:20]) + (f" and {len(names) - 20} more" if len(names) > 20 else "") +
+                             ". Fix: remove the device that fixes a motion a second time (two rigid links or gears "
+                             "in parallel, a closed loop of gears), or make one compliant.")
+    A = G[:, np.unique(G.indices)].toarray()          # only the coordinates the rows touch
     # rows that are combinations of others: pivoted QR of A^T orders rows by independence
     q, r, piv = la.qr(A.T, pivoting=True, mode="economic")
     d = np.abs(np.diag(r))

@@ -86,11 +86,13 @@ def build_nodes(model) -> tuple[list[Node], dict[Flange, Node]]:
             node.flanges.extend(members)
             if len(members) == 1 and members[0].grounded_if_free:
                 node.free_supports.append(members[0])
+        seen_bodies: set[int] = set()      # a set, not a list scan: 10,000 masses merged rigidly share one node
         for fl in node.flanges:
             comp = fl.component
             node_of[fl] = node
             if isinstance(comp, Body):
-                if comp not in node.bodies:
+                if id(comp) not in seen_bodies:
+                    seen_bodies.add(id(comp))
                     node.bodies.append(comp)
             elif isinstance(comp, Ground):
                 node.grounds.append(comp)
