@@ -161,8 +161,9 @@ class Model:
         """Simulate from ``t_start`` to ``t_end``; returns a ``Result``.
 
         ``dt_out`` is the output interval (default: 500 points); ``solver``
-        one of ``regmech.solvers.SOLVERS``; remaining options (``rtol``,
-        ``atol``, ...) go to the solver.
+        one of ``regmech.solvers.SOLVERS``; ``timeout_s`` [s] bounds the
+        run's wall time (``SimulationTimeout`` beyond it); remaining options
+        (``rtol``, ``atol``, ...) go to the solver.
         """
         from .solvers import simulate
         return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, t_start=t_start, **options)
