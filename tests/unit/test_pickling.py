@@ -65,6 +65,15 @@ def test_model_and_result_round_trip(name):
     _assert_same(res, again)
 
 
+@pytest.mark.parametrize("solver", ["expm", "rk4", "scipy:Radau", "convolution"])
+def test_what_other_solvers_leave_on_the_compiled_system_pickles(solver):
+    m = ALL_SCENES["coupled_clutches"]()
+    res = m.simulate(t_end=0.5, solver=solver)
+    m_back, res_back = pickle.loads(pickle.dumps((m, res)))
+    _assert_same(res, res_back)
+    _assert_same(res, m_back.simulate(t_end=0.5, solver=solver))
+
+
 def test_round_trip_in_a_fresh_interpreter(tmp_path):
     """No template cached, no Engine map class made yet: both are rebuilt from the pickled devices."""
     names = ["vehicle_launch", "coupled_clutches", "lossy_gear_demo"]
