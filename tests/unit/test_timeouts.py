@@ -16,7 +16,6 @@ import subprocess
 import sys
 import textwrap
 import time
-import warnings
 
 import numpy as np
 import pytest
@@ -104,7 +103,7 @@ def _check_one_timed_out(table, timeout=TIMEOUT):
     assert np.isfinite(table.loc[[0, 2], "J.phi.final"]).all() and table.attrs["failed"] == 1
 
 
-@pytest.mark.parametrize("executor", ["serial", "process", "dask"])
+@pytest.mark.parametrize("executor", ["serial", "process", "dask", "threads"])
 def test_a_hanging_run_becomes_a_failed_row_and_the_study_goes_on(executor):
     _spring().simulate(t_end=1.0)           # kernel templates warm here (forked workers inherit them)
     options = dict(progress=False, t_end=1.0, timeout_s=TIMEOUT)
@@ -113,6 +112,10 @@ def test_a_hanging_run_becomes_a_failed_row_and_the_study_goes_on(executor):
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                       dashboard_address=None) as cluster, distributed.Client(cluster) as client:
             table = rm.sweep(_spring, STUDY, ["J.phi"], executor=client, **options)
+    elif executor == "threads":                 # any concurrent.futures executor: the limit holds per thread
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(2) as threads:
+            table = rm.sweep(_spring, STUDY, ["J.phi"], executor=threads, batch_size=1, **options)
     else:
         table = rm.sweep(_spring, STUDY, ["J.phi"], executor=executor, workers=2, **options)
     _check_one_timed_out(table)

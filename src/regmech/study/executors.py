@@ -22,11 +22,11 @@ was computed is lost.
 from __future__ import annotations
 
 import os
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, as_completed
 
 from ..errors import ParameterError
 from .pool import ProcessBackend
-from .worker import StudySpec, ignore_sigint, run_batch, run_batch_payload
+from .worker import StudySpec, run_batch, run_batch_payload
 
 DASK_ADDRESS_SCHEMES = ("tcp://", "tls://", "inproc://", "ucx://", "ws://", "wss://")
 
@@ -77,17 +77,15 @@ class SerialBackend:
 
 
 class FuturesBackend:
-    """A ``concurrent.futures`` executor given by the user (``executor=None`` makes a ``ProcessPoolExecutor``
-    of ``workers`` processes, shut down at the end; the study's default is ``pool.ProcessBackend``)."""
+    """A ``concurrent.futures`` executor given by the user (left running at the end: it is theirs).
+    The study's own processes are ``pool.ProcessBackend``."""
 
-    def __init__(self, spec: StudySpec, executor: Executor | None, workers: int | None,
-                 timeout_s: float | None = None):
+    def __init__(self, spec: StudySpec, executor: Executor, workers: int | None, timeout_s: float | None = None):
         self.timeout_s = timeout_s
         self.payload = spec.dumps()
-        self.own = executor is None
-        self.workers = workers or (default_workers() if self.own else getattr(executor, "_max_workers", 1))
-        self.name = "process" if self.own else type(executor).__name__
-        self.pool = ProcessPoolExecutor(self.workers, initializer=ignore_sigint) if self.own else executor
+        self.workers = workers or getattr(executor, "_max_workers", 1)
+        self.name = type(executor).__name__
+        self.pool = executor
         self._futures: dict = {}
         self._yielded: set = set()
 
@@ -107,9 +105,7 @@ class FuturesBackend:
         return [(self._futures[f], _outcome(f)) for f in done]
 
     def close(self):
-        if self.own:
-            # running batches finish in the background; nothing waits for pending ones
-            self.pool.shutdown(wait=False, cancel_futures=True)
+        pass
 
 
 def _outcome(fut):

@@ -40,7 +40,7 @@ import time
 from collections import deque
 from multiprocessing.connection import wait
 
-from .worker import TIMEOUT_ORIGIN, StudySpec, describe_error, run_one, warm_up
+from .worker import TIMEOUT_ORIGIN, StudySpec, describe_error, ignore_sigint, run_one, warm_up
 
 #: a run not back from its worker after ``HARD_STOP_FACTOR * timeout_s + HARD_STOP_GRACE`` seconds is killed
 HARD_STOP_FACTOR = 1.25
@@ -95,7 +95,7 @@ def _watch_parent(parent_pid: int) -> None:
 def worker_main(conn, payload: bytes, parent_pid: int) -> None:
     """A worker: batches ``(timeout_s, [(run_id, params), ...])`` in, ``start``/``row``/``done`` messages out."""
     exit_with_parent(parent_pid)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the parent's business
+    ignore_sigint()
     try:
         spec: StudySpec = pickle.loads(payload)     # cloudpickle output loads with plain pickle
         warm_up()
