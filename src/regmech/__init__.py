@@ -8,8 +8,8 @@
 from . import signals
 from .component import Body, Component, Device, Ground, Param, Subsystem
 from .errors import (AccuracyError, ChatteringError, ModelError, ParameterError, RegmechError, RegularityError,
-                     RegularityWarning, SimulationError, StructureError, UnknownFlangeError,
-                     UnknownSignalError)
+                     RegularityWarning, SimulationError, SimulationTimeout, StructureError,
+                     UnknownFlangeError, UnknownSignalError)
 from .model import Model
 from .result import Event, Result, Stats
 from .scene import Scene
@@ -20,7 +20,8 @@ __all__ = [
     "Model", "Scene", "Result", "Event", "Stats", "signals",
     "Component", "Body", "Ground", "Device", "Param", "Subsystem",
     "RegmechError", "ParameterError", "ModelError", "UnknownFlangeError", "RegularityError",
-    "UnknownSignalError", "StructureError", "SimulationError", "ChatteringError", "AccuracyError", "RegularityWarning",
+    "UnknownSignalError", "StructureError", "SimulationError", "SimulationTimeout", "ChatteringError",
+    "AccuracyError", "RegularityWarning",
 ]
 
 

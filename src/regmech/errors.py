@@ -45,6 +45,10 @@ class ChatteringError(SimulationError):
     """A variable-structure device changed mode too often in a short time."""
 
 
+class SimulationTimeout(SimulationError):
+    """A run stopped by its wall-clock limit (``simulate(..., timeout_s=...)``, ``sweep(..., timeout_s=...)``)."""
+
+
 class AccuracyError(SimulationError):
     """A fixed-step run whose estimated global error exceeds its tolerance ``tol``
     (``regmech.solvers.richardson``): the answer would be wrong, so none is returned."""

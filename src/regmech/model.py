@@ -165,10 +165,11 @@ class Model:
         """Simulate from ``t_start`` to ``t_end``; returns a ``Result``.
 
         ``dt_out`` is the output interval (default: 500 points); ``solver``
-        one of ``regmech.solvers.SOLVERS``; remaining options (``rtol``,
-        ``atol``, ...) go to the solver, checked first against the options
-        it declares (``regmech.solvers.options``); ``max_points`` (default
-        1,000,000) caps the number of output points.
+        one of ``regmech.solvers.SOLVERS``; ``timeout_s`` [s] bounds the
+        run's wall time (``SimulationTimeout`` beyond it); remaining options
+        (``rtol``, ``atol``, ...) go to the solver, checked first against
+        the options it declares (``regmech.solvers.options``);
+        ``max_points`` (default 1,000,000) caps the number of output points.
         """
         from .solvers import simulate
         return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, t_start=t_start, **options)

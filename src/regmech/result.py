@@ -67,6 +67,13 @@ class Result:
         self.model_name = model_name
         self._cache: dict = {}
 
+    def __getstate__(self):
+        # the signal cache is derived from the trajectory (which keeps t, y, y', modes and the compiled
+        # system): left out to keep the pickle small
+        state = self.__dict__.copy()
+        state["_cache"] = {}
+        return state
+
     @property
     def names(self) -> list[str]:
         return self._traj.names()

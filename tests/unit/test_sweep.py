@@ -191,19 +191,19 @@ def test_ctrl_c_returns_finished_rows_and_resume_completes(tmp_path):
 def test_interrupted_process_pool_keeps_finished_batches(tmp_path, monkeypatch):
     out = tmp_path / "study.csv"
     study = grid({"fn_max": [10.0, 20.0, 40.0, 80.0], "t2": [0.3, 0.5]})
-    plain_run = study_executors.FuturesBackend.run
+    plain_run = study_executors.ProcessBackend.run
 
     def run_then_ctrl_c(self, batches):
         gen = plain_run(self, batches)
         yield next(gen)
         raise KeyboardInterrupt          # as if Ctrl-C arrived while waiting for the next batch
 
-    monkeypatch.setattr(study_executors.FuturesBackend, "run", run_then_ctrl_c)
+    monkeypatch.setattr(study_executors.ProcessBackend, "run", run_then_ctrl_c)
     with pytest.warns(RuntimeWarning, match="interrupted"):
         part = rm.sweep(coupled_clutches, study, OUTPUTS, executor="process", workers=2, batch_size=2, out=out, **FAST)
     assert part.attrs["interrupted"] and 2 <= len(part) < len(study)
     assert (part["status"] == "ok").all()
-    monkeypatch.setattr(study_executors.FuturesBackend, "run", plain_run)
+    monkeypatch.setattr(study_executors.ProcessBackend, "run", plain_run)
     done = set(part["run_id"])
     table = rm.sweep(coupled_clutches, study, OUTPUTS, executor="process", workers=2, out=out, **FAST)
     assert table.attrs["skipped"] == len(done) and table.attrs["runs"] == len(study) - len(done)
@@ -224,7 +224,7 @@ def test_runs_lost_with_a_dead_worker_are_recorded_and_rerun_on_resume(tmp_path)
     table = rm.sweep(_crashing_clutches, study[:2], OUTPUTS, executor="process", workers=1, out=out, **FAST)
     lost = table[table["error"].fillna("").str.startswith("the worker lost")]
     assert 1 in set(lost["run_id"]) and (table["status"] == "failed").sum() == len(lost)
-    assert "BrokenProcessPool" in lost["error"].iloc[-1]
+    assert "worker process died (exit code 3)" in lost["error"].iloc[-1]
 
     def build(fn_max, t2):          # same parameters; this time the bad set is an ordinary failure
         return coupled_clutches(fn_max=fn_max, t2=float(t2))

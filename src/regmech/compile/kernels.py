@@ -169,6 +169,12 @@ def template_for(dev: Device) -> Template:
     return tpl
 
 
+def _signature(tpl: Template) -> tuple:
+    """What the compiled layout relies on in a template (checked when it is found again after unpickling)."""
+    return (tpl.k, tuple(tpl.states), tuple(tpl.params), tuple(tpl.inputs), tuple(tpl.jac_entries), tpl.affine,
+            tpl.offset_varies, tpl.offset_uses_time)
+
+
 class SignalBank:
     """The values of one signal parameter over all instances of a class, cheaply.
 
@@ -240,6 +246,30 @@ class KernelGroup:
         self.inputs_constant = all(b.const for b in self.banks)
         #: affine class whose offset tau(0) changes in time (e.g. a Torque with a Sine): evaluated per call
         self.offset_varies = tpl.affine and (tpl.offset_uses_time or (tpl.offset_varies and not self.inputs_constant))
+
+    # -- pickling: the template's lambdified functions are not picklable (and a per-map Engine subclass
+    # cannot be pickled by name), so the template is left out and found again from the first device
+    # (``template_for``: the process-wide cache, lambdified once per class in the new process) on
+    # first use after unpickling. ``__getattr__`` runs only when ``tpl`` is missing, so the hot path
+    # (``g.tpl.res_fn``) costs nothing more.
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        tpl = state.pop("tpl", None)
+        if tpl is not None:
+            state["_tpl_signature"] = _signature(tpl)
+        return state
+
+    def __getattr__(self, name):
+        if name != "tpl" or "_tpl_signature" not in self.__dict__:
+            raise AttributeError(name)
+        tpl = template_for(self.devices[0])
+        if _signature(tpl) != self._tpl_signature:
+            dev = self.devices[0]
+            raise ModelError(f"{type(dev).__name__} '{dev.name}': its class's laws differ from those it was "
+                             f"compiled with before pickling (another version of the class or of regmech?); "
+                             f"build and compile the model again in this process")
+        self.tpl = tpl
+        return tpl
 
     def inputs_at(self, t: float, left: bool = False) -> list[np.ndarray]:
         """Input values per signal parameter (fresh arrays)."""

@@ -26,6 +26,13 @@ class Trajectory:
         self._mat: dict = {}
         self._index_cache = None
 
+    def __getstate__(self):
+        # the name index holds closures and the matrices are derived: both are rebuilt on first use
+        state = self.__dict__.copy()
+        state["_mat"] = {}
+        state["_index_cache"] = None
+        return state
+
     @property
     def _index(self):
         """name -> recipe, built on first use (it costs ~0.3 s for 1,000 masses)."""

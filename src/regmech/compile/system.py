@@ -78,6 +78,16 @@ class CompiledSystem:
             self.jac = self._pb.build()
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
 
+    # -------------------------------------------------------------- pickling
+    #: caches that hold SuperLU factorisations (not picklable) or plans derived from them; rebuilt on use
+    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan")
+
+    def __getstate__(self):
+        """Everything but the factorisation caches (``KernelGroup`` leaves out its lambdified template)."""
+        state = {k: v for k, v in self.__dict__.items() if k not in self._UNPICKLED}
+        state["_kkt_cache"] = {}
+        return state
+
     # ------------------------------------------------------------------ build
     def _build_kernels(self):
         st = self.structure

@@ -419,6 +419,20 @@ class FrictionSet:
                            for j in range(self.mf)]
             self._ev_out = np.empty(self.n_events)
 
+    # -- pickling: the capacity functions are closures; they are made again from the devices ---------
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_cap_fns"] = None
+        if self._small is not None:
+            state["_small"] = [row[:-1] for row in self._small]      # the last entry is the capacity function
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._cap_fns = [d.capacity_function() for d in self.devices]
+        if self._small is not None:
+            self._small = [(*row, fn) for row, fn in zip(self._small, self._cap_fns)]
+
     # -- helpers --------------------------------------------------------------
     def _left(self, t):
         return t >= self.c._t_right

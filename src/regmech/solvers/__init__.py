@@ -15,7 +15,7 @@ import time
 
 from .._numbers import describe
 from ..errors import ParameterError
-from .common import MAX_TIME_EVENTS, check_max_time_events, check_signals
+from .common import MAX_TIME_EVENTS, check_max_time_events, check_signals, check_timeout, time_limit
 from .options import MAX_POINTS, TIME_ARGUMENTS, OptionSet, check_motion, check_times
 
 SOLVERS: dict = {}
@@ -40,7 +40,12 @@ def register(name: str, options: OptionSet):
 
         @functools.wraps(fn)
         def run(model, t_start=0.0, t_end=1.0, dt_out=None, max_points=MAX_POINTS, max_time_events=MAX_TIME_EVENTS,
-                **given):
+                timeout_s=None, **given):
+            # timeout_s [s]: every solver checks the active limit in its inner loops (common.time_limit)
+            with time_limit(timeout_s):
+                return checked_run(model, t_start, t_end, dt_out, max_points, max_time_events, given)
+
+        def checked_run(model, t_start, t_end, dt_out, max_points, max_time_events, given):
             if not callable(getattr(model, "compile", None)):
                 raise ParameterError(f"solver '{name}': simulate() takes a regmech.Model, got {describe(model)}")
             t_start, t_end, dt_out, _ = check_times(t_start, t_end, dt_out, max_points)
@@ -94,6 +99,8 @@ def check_options(t_end, dt_out=None, solver="ida", t_start=0.0, max_points=MAX_
     out = {"t_end": t_end, "dt_out": dt_out, "solver": solver, "t_start": t_start, "max_points": max_points}
     if "max_time_events" in options:
         out["max_time_events"] = check_max_time_events(options.pop("max_time_events"))
+    if "timeout_s" in options:
+        out["timeout_s"] = check_timeout(options.pop("timeout_s"), "simulate(timeout_s=...)")
     return {**out, **fn.options.check(solver, options)}
 
 

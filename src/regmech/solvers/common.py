@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+import threading
+import time
 
 import numpy as np
 
-from ..errors import ParameterError, SimulationError
+from ..errors import ParameterError, SimulationError, SimulationTimeout
 
 
 def check_times(t_start, t_end, dt_out):
@@ -266,3 +269,88 @@ class StepBudget:
                 f"(rho = {rho:.3g} 1/s): the steps are set by the tolerance, i.e. the run is long for this "
                 f"method's order at this rtol (a higher-order method such as 'scipy:DOP853' takes fewer "
                 f"steps)"), False
+
+
+# ----------------------------------------------------------------- time limit
+#: the wall-clock limit active in this thread (``time_limit``), read by every solver at the start of a run
+_ACTIVE = threading.local()
+
+
+class _Limit:
+    """A wall-clock limit: ends at ``at`` (``time.monotonic()`` seconds), ``seconds`` long, set by ``origin``."""
+
+    __slots__ = ("at", "seconds", "origin")
+
+    def __init__(self, seconds: float, origin: str):
+        self.at = time.monotonic() + seconds
+        self.seconds = seconds
+        self.origin = origin
+
+
+def check_timeout(seconds, where: str = "simulate()"):
+    """``timeout_s`` as a float, or None (no limit); anything but a positive finite number is refused."""
+    if seconds is None:
+        return None
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(seconds) or seconds <= 0:
+        raise ParameterError(f"{where}: timeout_s must be a positive number of seconds (or None for no limit), "
+                             f"got {seconds!r}")
+    return float(seconds)
+
+
+@contextlib.contextmanager
+def time_limit(seconds, origin: str = "simulate(timeout_s=...)"):
+    """Run the body under a wall-clock limit of ``seconds`` (None: no limit of its own).
+
+    The limit is *cooperative*: every solver takes the active limit at the
+    start of a run (``run_deadline``) and checks it in its inner loops (IDA:
+    every residual evaluation; the ODE-form driver, hence every fixed-step,
+    scipy and convolution run and the companion runs of the error estimates:
+    every step), so a run stops within one residual evaluation or one step
+    after the limit with ``SimulationTimeout``. Limits nest (a study's limit
+    per run around the simulations inside it): the earliest end holds.
+    """
+    seconds = check_timeout(seconds, origin)
+    if seconds is None:
+        yield
+        return
+    outer = getattr(_ACTIVE, "limit", None)
+    mine = _Limit(seconds, origin)
+    _ACTIVE.limit = mine if outer is None or mine.at < outer.at else outer
+    try:
+        yield
+    finally:
+        _ACTIVE.limit = outer
+
+
+class Deadline:
+    """The active limit as one solver run sees it; ``check(t)`` raises ``SimulationTimeout`` past its end."""
+
+    __slots__ = ("at", "limit", "solver", "model_name", "t_end")
+
+    def __init__(self, limit: _Limit, solver: str, model_name: str, t_end: float):
+        self.at = limit.at
+        self.limit = limit
+        self.solver = solver
+        self.model_name = model_name
+        self.t_end = float(t_end)
+
+    def check(self, t) -> None:
+        if time.monotonic() > self.at:
+            raise self.error(t)
+
+    def error(self, t) -> SimulationTimeout:
+        lim = self.limit
+        return SimulationTimeout(
+            f"timed out after {lim.seconds:g} s ({lim.origin}): solver '{self.solver}' on model "
+            f"'{self.model_name}' had reached t={float(t):.6g} s of t_end={self.t_end:.6g} s. Raise the limit, "
+            f"shorten the run, or make it cheaper (a looser rtol, another solver, a model reduced with "
+            f"rm.Scene(band_hz=...))")
+
+
+def run_deadline(solver: str, model, t_end) -> Deadline | None:
+    """The limit of the run about to start (None when no ``time_limit`` is active in this thread)."""
+    limit = getattr(_ACTIVE, "limit", None)
+    if limit is None:
+        return None
+    return Deadline(limit, solver, getattr(model, "name", "?"), t_end)

@@ -23,7 +23,8 @@ import numpy as np
 from ..errors import SimulationError
 from ..result import Event, Result, Stats
 from . import register
-from .common import Recorder, check_link_spread, check_times, output_grid, signal_breakpoints
+from .common import (Recorder, check_link_spread, check_times, output_grid, run_deadline,
+                     signal_breakpoints)
 from .options import (Choice, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
                       rtol_option, stiff_check_option)
 
@@ -101,7 +102,8 @@ def choose_linsolver(c, dense_max=60, band_max=40, dense_wide_max=400):
     return "sparse", _Ordering(c.N)
 
 
-def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order, max_steps=50000):
+def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order, max_steps=50000,
+                 deadline=None):
     import sksundae
 
     if order.perm is None:
@@ -114,6 +116,15 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
             yf, ypf = order.full(y, yp)
             c.residual(t, yf, ypf, r_full, modes)
             res[:] = r_full[perm]
+
+    if deadline is not None:
+        # the run's wall-clock limit, checked at every residual evaluation (scikit-sundae passes the
+        # SimulationTimeout raised here out of solve())
+        unlimited = resfn
+
+        def resfn(t, y, yp, res):
+            deadline.check(t)
+            unlimited(t, y, yp, res)
 
     alg = c.algebraic if order.perm is None else np.sort(order.inv[c.algebraic])
     atol = order.to_solver(atol) if np.ndim(atol) else atol
@@ -175,6 +186,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
                  chatter_count=50):
     """IDA with analytic sparse Jacobian and event handling (see module docstring)."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    deadline = run_deadline("ida", model, t_end)
     tc = time.perf_counter()
     c = model.compile()
     compile_time = time.perf_counter() - tc
@@ -210,12 +222,14 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps)
     reuse = {}        # the last segment's solver while it may start the next one (see _solve_segment)
     while t < t_end:
+        if deadline is not None:
+            deadline.check(t)
         c._t_right = t_stop
         if t_stop - t <= 1e-13 * max(1.0, abs(t)):
             # an event landed on a breakpoint (to round-off): nothing to integrate
             sol = None
         else:
-            sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse)
+            sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse, deadline)
         if sol is not None and sol.status == 2:
             t_ev = float(sol.t_events[-1])
             y_ev, yp_ev = np.array(sol.y_events[-1]), np.array(sol.yp_events[-1])
@@ -300,7 +314,7 @@ def _reusable(reuse, modes, atol_vec):
     return reuse["solver"]
 
 
-def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse=None):
+def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse=None, deadline=None):
     """One IDA run from t to t_stop (or to the first mode event); records the output rows.
 
     After a mode event the solver is a fresh one: scikit-sundae's event bookkeeping lives on the
@@ -316,7 +330,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     solver = _reusable(reuse, modes, atol_vec)
     if solver is None:
         solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
-                              max_steps)
+                              max_steps, deadline)
         if reuse is not None:
             reuse.update(solver=solver, modes=np.array(modes), atol=atol_vec)
     tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end

@@ -39,7 +39,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import SimulationError
 from ..result import Event, Result, Stats
-from .common import Recorder, check_times, output_grid, scale_hint, signal_breakpoints
+from .common import Recorder, check_times, output_grid, run_deadline, scale_hint, signal_breakpoints
 from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROUGH,  # noqa: F401 (BLOW_UP
                          ROUGH_STEPS, GrowthWatch)                                 # is re-exported)
 
@@ -598,6 +598,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     its ``Stats`` only.
     """
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    deadline = run_deadline(name, model, t_end)
     tc = time.perf_counter()
     c = model.compile()
     compile_time = time.perf_counter() - tc
@@ -628,6 +629,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     extra = {"rejected": 0}
     t = t_start
     while True:
+        if deadline is not None:
+            deadline.check(t)
         c._t_right = t_stop
         problem.modes = modes
         # grid points inside (t, t_stop) by bisection (not a scan of the grid per segment)
@@ -635,7 +638,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         knots = np.append(inner, t_stop)
         if t < t_stop:
             end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name,
-                               explicit, t_end)
+                               explicit, t_end, deadline)
             stats.segments += 1
         else:
             end = SegmentEnd(t_stop, u)     # an event landed on the breakpoint: nothing left of this segment
@@ -688,8 +691,9 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
 
 
 def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name, explicit,
-                 t_end):
-    """Integrate one segment; record the grid points inside it; stop at a crossing or at ``t_stop``."""
+                 t_end, deadline=None):
+    """Integrate one segment; record the grid points inside it; stop at a crossing or at ``t_stop``;
+    ``deadline`` (``common.Deadline``, the run's wall-clock limit) is checked after every step."""
     c, modes = problem.c, problem.modes
     growth.segment_start(problem.rhs, t, t_stop, len(u))
     stepper = make_stepper(problem, t, u, t_stop, knots)
@@ -708,6 +712,8 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
                     f"solver '{name}' could not advance from t={stepper.t_old:.9g} s in model '{c.model.name}' "
                     f"(the step ended at t={float(stepper.t)!r}): the model's time scales are probably beyond "
                     f"double precision.{scale_hint(c)} Check the masses and stiffnesses, or try 'ida'.")
+            if deadline is not None:
+                deadline.check(stepper.t)
             diverged = growth.check(stepper.t, stepper.u)
             if diverged is not None:
                 raise _divergence_error(problem, stepper, name, diverged, growth, explicit, t, u)

@@ -48,7 +48,7 @@ RTOL_MIN = 100 * float(np.finfo(float).eps)
 #: to go further.
 MAX_POINTS = 1_000_000
 #: the arguments every solver takes besides its own options
-TIME_ARGUMENTS = ("t_start", "t_end", "dt_out", "max_points", "max_time_events")
+TIME_ARGUMENTS = ("t_start", "t_end", "dt_out", "max_points", "max_time_events", "timeout_s")
 
 
 class Refused(Exception):

@@ -8,8 +8,9 @@ a keyword argument of the scene function (``regmech scenes`` lists the
 scenes); the study is the full factorial of the values (``--zipped``: k-th
 values together). Outputs, unless ``--output SIGNAL`` names signals: the
 final speed of every body (``<body>.w.final``) and the peak absolute torque
-of every device that is not a source (``<device>.tau.max_abs``). Rows go to
-``--out`` as they finish; rerunning the same command resumes. Exit status:
+of every device that is not a source (``<device>.tau.max_abs``).
+``--timeout-s S`` limits each run to S seconds (a run past it is a failed
+row). Rows go to ``--out`` as they finish; rerunning the same command resumes. Exit status:
 0 when every run succeeded, 1 when some failed, 130 when interrupted.
 """
 
@@ -64,6 +65,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--executor", default="process",
                    help="serial, process (default), dask, or a Dask scheduler address tcp://host:port")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: all CPUs)")
+    p.add_argument("--timeout-s", type=float, default=None, metavar="SECONDS",
+                   help="wall-clock limit of each run; a run past it is a failed row (default: none)")
     p.add_argument("--retry-failed", action="store_true", help="rerun the failed rows found in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
@@ -102,7 +105,7 @@ def _run(args) -> int:
     options = {k: v for k, v in (("dt_out", args.dt_out), ("rtol", args.rtol), ("atol", args.atol)) if v is not None}
     table = sweep(build, grid, outputs, executor=args.executor, out=args.out, progress=not args.no_progress,
                   zipped=args.zipped, workers=args.workers, retry_failed=args.retry_failed,
-                  t_end=args.t_end, solver=args.solver, **options)
+                  timeout_s=args.timeout_s, t_end=args.t_end, solver=args.solver, **options)
     return _summary(table, args.out)
 
 

@@ -1,9 +1,16 @@
 """Where the runs of a study execute: in this process, in local worker processes, or on Dask.
 
 Every backend takes batches of runs ``[(run_id, params), ...]`` and yields
-``(batch, rows)`` as batches finish (any order; the study sorts by run id),
+``(batch, rows)`` as runs finish (any order; the study sorts by run id),
 or ``(batch, exception)`` when a whole batch was lost (a worker died, the
-recipe could not be loaded there). Batches, not single runs, go to the
+recipe could not be loaded there).
+
+The time limit per run (``timeout_s``) reaches every backend: the solvers
+check it in their loops (cooperative, see ``solvers.common.time_limit``).
+Only the study's own processes (``pool.ProcessBackend``) can also stop a run
+that never reaches a check, by killing its worker; in this process
+(``serial``), in a given ``concurrent.futures`` executor and on Dask the
+limit is cooperative only. Batches, not single runs, go to the
 workers: one task per batch amortises the scheduling and pickling cost, and
 consecutive runs in one worker reuse its warm kernel-template cache.
 
@@ -15,26 +22,27 @@ was computed is lost.
 from __future__ import annotations
 
 import os
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, as_completed
 
 from ..errors import ParameterError
-from .worker import StudySpec, ignore_sigint, run_batch, run_batch_payload
+from .pool import ProcessBackend
+from .worker import StudySpec, run_batch, run_batch_payload
 
 DASK_ADDRESS_SCHEMES = ("tcp://", "tls://", "inproc://", "ucx://", "ws://", "wss://")
 
 
-def make_backend(executor, spec: StudySpec, workers: int | None):
+def make_backend(executor, spec: StudySpec, workers: int | None, timeout_s: float | None = None):
     """The backend for ``sweep(executor=...)``: None or "process", "serial", "dask", a Dask
     scheduler address, a ``dask.distributed.Client`` or any ``concurrent.futures.Executor``."""
     if executor == "serial":
-        return SerialBackend(spec)
+        return SerialBackend(spec, timeout_s)
     if executor is None or executor == "process":
-        return FuturesBackend(spec, None, workers)
+        return ProcessBackend(spec, workers or default_workers(), timeout_s)
     if isinstance(executor, Executor):
-        return FuturesBackend(spec, executor, workers)
+        return FuturesBackend(spec, executor, workers, timeout_s)
     if executor == "dask" or (isinstance(executor, str) and executor.startswith(DASK_ADDRESS_SCHEMES)) \
             or type(executor).__name__ == "Client":
-        return DaskBackend(spec, executor, workers)
+        return DaskBackend(spec, executor, workers, timeout_s)
     raise ParameterError(f"sweep: unknown executor {executor!r}; use 'serial', 'process' (default), 'dask', a Dask "
                          f"scheduler address ('tcp://host:port'), a dask.distributed.Client or a "
                          f"concurrent.futures.Executor")
@@ -50,12 +58,13 @@ class SerialBackend:
     name = "serial"
     workers = 1
 
-    def __init__(self, spec: StudySpec):
+    def __init__(self, spec: StudySpec, timeout_s: float | None = None):
         self.spec = spec
+        self.timeout_s = timeout_s
 
     def run(self, batches):
         for batch in batches:
-            yield batch, run_batch(self.spec, batch)
+            yield batch, run_batch(self.spec, batch, self.timeout_s)
 
     def cancel(self):
         pass
@@ -68,20 +77,20 @@ class SerialBackend:
 
 
 class FuturesBackend:
-    """A ``concurrent.futures`` executor: by default a ``ProcessPoolExecutor`` of its own
-    (``workers`` processes, default: the CPUs this process may use), shut down at the end."""
+    """A ``concurrent.futures`` executor given by the user (left running at the end: it is theirs).
+    The study's own processes are ``pool.ProcessBackend``."""
 
-    def __init__(self, spec: StudySpec, executor: Executor | None, workers: int | None):
+    def __init__(self, spec: StudySpec, executor: Executor, workers: int | None, timeout_s: float | None = None):
+        self.timeout_s = timeout_s
         self.payload = spec.dumps()
-        self.own = executor is None
-        self.workers = workers or (default_workers() if self.own else getattr(executor, "_max_workers", 1))
-        self.name = "process" if self.own else type(executor).__name__
-        self.pool = ProcessPoolExecutor(self.workers, initializer=ignore_sigint) if self.own else executor
+        self.workers = workers or getattr(executor, "_max_workers", 1)
+        self.name = type(executor).__name__
+        self.pool = executor
         self._futures: dict = {}
         self._yielded: set = set()
 
     def run(self, batches):
-        self._futures = {self.pool.submit(run_batch_payload, self.payload, b): b for b in batches}
+        self._futures = {self.pool.submit(run_batch_payload, self.payload, b, self.timeout_s): b for b in batches}
         for fut in as_completed(self._futures):
             self._yielded.add(fut)
             yield self._futures[fut], _outcome(fut)
@@ -96,9 +105,7 @@ class FuturesBackend:
         return [(self._futures[f], _outcome(f)) for f in done]
 
     def close(self):
-        if self.own:
-            # running batches finish in the background; nothing waits for pending ones
-            self.pool.shutdown(wait=False, cancel_futures=True)
+        pass
 
 
 def _outcome(fut):
@@ -115,7 +122,8 @@ class DaskBackend:
 
     name = "dask"
 
-    def __init__(self, spec: StudySpec, executor, workers: int | None):
+    def __init__(self, spec: StudySpec, executor, workers: int | None, timeout_s: float | None = None):
+        self.timeout_s = timeout_s
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:
@@ -138,7 +146,8 @@ class DaskBackend:
 
     def run(self, batches):
         from dask.distributed import as_completed as dask_completed
-        self._futures = {self.client.submit(run_batch_payload, self.payload, b, pure=False): b for b in batches}
+        self._futures = {self.client.submit(run_batch_payload, self.payload, b, self.timeout_s, pure=False): b
+                         for b in batches}
         for fut in dask_completed(list(self._futures)):
             self._yielded.add(fut)
             yield self._futures[fut], _outcome(fut)

@@ -31,7 +31,7 @@ LOST = "the worker lost this run's batch"
 
 def sweep(build: Callable, params, outputs, executor=None, out=None, progress: bool = True, *,
           zipped: bool = False, workers: int | None = None, batch_size: int | None = None,
-          retry_failed: bool = False, **simulate_options):
+          retry_failed: bool = False, timeout_s: float | None = None, **simulate_options):
     """Simulate ``build(**p)`` for every parameter set ``p`` of ``params``; one table row per run.
 
     build     function returning a ``regmech.Model`` for one parameter set (keyword arguments).
@@ -50,6 +50,13 @@ def sweep(build: Callable, params, outputs, executor=None, out=None, progress: b
               always run again).
     progress  show a tqdm bar (throughput, time remaining).
     batch_size runs per task sent to a worker (default: up to 16, at least 4 tasks a worker).
+    timeout_s wall-clock limit [s] of each run (build, simulate and outputs; default: none). A run
+              past it becomes a failed row "SimulationTimeout: timed out after <timeout_s> s ..."
+              and the study goes on. Every solver checks the limit in its loops and stops within
+              a step; with the default executor a run that never reaches a check (a hang in user
+              code) is stopped by killing its worker after ``1.25 timeout_s + 2`` s (the other
+              executors rely on the solvers' checks only). Timed-out rows count as failed: rerun
+              with ``retry_failed=True``.
     **simulate_options  go to every ``model.simulate``: ``t_end`` (required), ``dt_out``,
               ``solver``, ``rtol``, ``atol``, ...
 
@@ -69,6 +76,10 @@ def sweep(build: Callable, params, outputs, executor=None, out=None, progress: b
         outputs = SignalSummary(outputs)
     if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1):
         raise ParameterError(f"sweep: batch_size must be a positive integer, got {batch_size!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ParameterError(f"sweep: workers must be a positive integer (or None: all CPUs), got {workers!r}")
+    from ..solvers.common import check_timeout
+    timeout_s = check_timeout(timeout_s, "sweep()")
     runs = runs_from(params, zipped=zipped)
     param_names = list(dict.fromkeys(k for p in runs for k in p))
     spec = StudySpec(build, outputs, dict(simulate_options))
@@ -80,7 +91,7 @@ def sweep(build: Callable, params, outputs, executor=None, out=None, progress: b
              "elapsed": 0.0, "runs_per_second": math.nan, "interrupted": False}
     t0 = time.perf_counter()
     if todo:
-        _execute(make_backend(executor, spec, workers), todo, rows, store, progress, batch_size, attrs)
+        _execute(make_backend(executor, spec, workers, timeout_s), todo, rows, store, progress, batch_size, attrs)
     elapsed = time.perf_counter() - t0
     done_now = len(rows) - attrs["skipped"]
     attrs.update(runs=done_now, elapsed=elapsed, runs_per_second=done_now / elapsed if elapsed > 0 else math.nan)

@@ -6,6 +6,13 @@ parameter set raising ``ParameterError``, a solver failure raising
 ``SimulationError``, a bug in the outputs function) is caught and recorded in
 that run's row, so the study goes on.
 
+A time limit per run (``timeout_s``) covers build, simulate and outputs: the
+solvers check it in their inner loops (``solvers.common.time_limit``), so a
+run past it stops there with ``SimulationTimeout``, and a run that finished
+but took longer is failed too, so every ``ok`` row kept its limit. A worker
+loads the solvers before its first run, so the one-time imports of a process
+are not charged to a run (the first compile of each device class still is).
+
 Worker processes receive the recipe as bytes (cloudpickle when installed, so
 lambdas and closures work, else pickle) and keep it unpickled per process,
 keyed by its hash: a worker unpickles each study's recipe once, and the
@@ -26,8 +33,11 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import ParameterError, RegmechError
+from ..errors import ParameterError, RegmechError, SimulationTimeout
 from .sampling import RESERVED
+
+#: where a study's limit comes from (in the messages of timed-out runs)
+TIMEOUT_ORIGIN = "sweep(timeout_s=...)"
 
 
 @dataclass
@@ -52,14 +62,23 @@ class StudySpec:
                 f"what they use picklable, or use executor='serial'") from exc
 
 
-def run_one(spec: StudySpec, run_id: int, params: dict) -> dict:
-    """The table row of one run: run id, parameters, outputs, status, error, wall time [s]."""
+def run_one(spec: StudySpec, run_id: int, params: dict, timeout_s: float | None = None) -> dict:
+    """The table row of one run: run id, parameters, outputs, status, error, wall time [s].
+
+    ``timeout_s``: the run's wall-clock limit (build, simulate and outputs; see the module docstring).
+    """
+    from ..solvers.common import time_limit
     row = {"run_id": run_id, **params}
     t0 = time.perf_counter()
     try:
-        model = spec.build(**params)
-        res = model.simulate(**spec.simulate_options)
-        values = spec.outputs(res)
+        with time_limit(timeout_s, TIMEOUT_ORIGIN):
+            model = spec.build(**params)
+            res = model.simulate(**spec.simulate_options)
+            values = spec.outputs(res)
+        elapsed = time.perf_counter() - t0
+        if timeout_s is not None and elapsed > timeout_s:
+            raise SimulationTimeout(f"timed out after {timeout_s:g} s ({TIMEOUT_ORIGIN}): the run finished after "
+                                    f"{elapsed:.3g} s (build, simulate and outputs together)")
         row.update(_check_outputs(values, params))
         row.update(status="ok", error=None)
     except Exception as exc:   # recorded in the row: one bad run must not stop the study
@@ -68,8 +87,16 @@ def run_one(spec: StudySpec, run_id: int, params: dict) -> dict:
     return row
 
 
-def run_batch(spec: StudySpec, batch: list[tuple[int, dict]]) -> list[dict]:
-    return [run_one(spec, run_id, params) for run_id, params in batch]
+def run_batch(spec: StudySpec, batch: list[tuple[int, dict]], timeout_s: float | None = None) -> list[dict]:
+    if timeout_s is not None:
+        warm_up()
+    return [run_one(spec, run_id, params, timeout_s) for run_id, params in batch]
+
+
+def warm_up() -> None:
+    """Import the solvers now (seconds in a fresh process), so that no run's time limit pays for it."""
+    from .. import solvers
+    solvers._load()
 
 
 def describe_error(exc: BaseException) -> str:
@@ -119,9 +146,9 @@ def _spec_from(payload: bytes) -> StudySpec:
     return spec
 
 
-def run_batch_payload(payload: bytes, batch: list[tuple[int, dict]]) -> list[dict]:
-    """Entry point in a worker process (process pool or Dask worker)."""
-    return run_batch(_spec_from(payload), batch)
+def run_batch_payload(payload: bytes, batch: list[tuple[int, dict]], timeout_s: float | None = None) -> list[dict]:
+    """Entry point in a worker process (a ``concurrent.futures`` executor or a Dask worker)."""
+    return run_batch(_spec_from(payload), batch, timeout_s)
 
 
 def ignore_sigint() -> None:
