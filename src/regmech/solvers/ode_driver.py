@@ -645,8 +645,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
             crossed = np.zeros(fr.n_events, int)
             crossed[end.crossed] = -1
             y, yp, new_modes, changes = fr.settle(t, (y_ev, yp_ev), modes, crossed=crossed)
-            for (comp, old, new) in changes:
-                events.append(Event(t, comp, old, new))
+            for (comp, old, new, kind) in changes:
+                events.append(Event(t, comp, old, new, kind))
                 guard.record(t, comp)
             if len(events) > max_events:
                 raise SimulationError(f"more than {max_events} mode changes in model '{model.name}'; raise "
@@ -664,8 +664,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         if fr:
             y, yp = c.y_from_ode(t, u, modes)
             y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
-            for (comp, old, new) in changes:
-                events.append(Event(t, comp, old, new))
+            for (comp, old, new, kind) in changes:
+                events.append(Event(t, comp, old, new, kind))
                 guard.record(t, comp)
             modes = new_modes
             u = c.ode_state(y)
