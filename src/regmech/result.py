@@ -21,16 +21,30 @@ from .errors import RegmechError, UnknownSignalError
 MODE_NAMES = {-1: "Backward", 0: "Stuck", 1: "Forward", 2: "Free", 3: "Held"}
 
 
+DRIVING_NAMES = {1: "flange_a drives", -1: "flange_b drives"}
+
+
 @dataclass(frozen=True)
 class Event:
-    """A mode change of a variable-structure device."""
+    """A mode change of a variable-structure device.
+
+    ``kind`` "mode": ``old_mode`` and ``new_mode`` are modes (``MODE_NAMES``). ``kind`` "driving
+    side": a lossy gear (``LossyGear``, ``LossyPlanetary``) rolls on but the power now flows the
+    other way, so its other efficiency applies; ``old_mode`` and ``new_mode`` are then the driving
+    flange, +1 flange_a (the sun of a planetary set), -1 flange_b (the ring). Filter on ``kind``
+    to compare mode sequences.
+    """
 
     t: float
     component: str
     old_mode: int
     new_mode: int
+    kind: str = "mode"
 
     def __str__(self):
+        if self.kind == "driving side":
+            return (f"t={self.t:.6g}: {self.component} driving side: {DRIVING_NAMES.get(self.old_mode, self.old_mode)}"
+                    f" -> {DRIVING_NAMES.get(self.new_mode, self.new_mode)}")
         return (f"t={self.t:.6g}: {self.component} {MODE_NAMES.get(self.old_mode, self.old_mode)} -> "
                 f"{MODE_NAMES.get(self.new_mode, self.new_mode)}")
 

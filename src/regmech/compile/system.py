@@ -242,7 +242,7 @@ class CompiledSystem:
         plan = self.__dict__.get("_jac_plan")
         if plan is None or plan.jac is not self.jac:      # the pattern grows when friction rows are added
             plan = self._jac_plan = JacobianPlan(self.jac, self._plan, self.nw_kernel)
-        extra = self.friction.weights(t, y[self._sv], cj, modes) if self.mf else None
+        extra = self.friction.weights(t, y[self._sv], cj, modes, y[self._slam]) if self.mf else None
         if extra is not None:
             extra = extra[: plan.n_extra]        # trailing weights without pattern entries (no coupled rows)
         return plan.data(t, y, cj, t >= self._t_right, extra)

@@ -245,7 +245,8 @@ class LossyGear(FrictionDevice):
     Since ``tau_a`` contains ``tau_loss`` the row is linear in both multipliers. Stuck
     (``w_a = 0``): the loss torque holds the gear while it lies between the values at
     ``w = 0+`` and ``0-``; beyond them it starts rolling. The driving side changes at
-    an event where ``tau_eta`` crosses zero. An ideal table ``[[0, 1, 1, 0, 0]]``
+    an event where ``tau_eta`` crosses zero (``res.events``: kind "driving side", see
+    ``FrictionSet._fix_quadrant`` for how the side is decided). An ideal table ``[[0, 1, 1, 0, 0]]``
     keeps the gear in mode Free (``tau_loss = 0``).
     """
 
@@ -325,11 +326,20 @@ class LossyGear(FrictionDevice):
             return BACKWARD
         return 0
 
-    def driving_side(self, mode, tau_loss, lam_g):
-        _, _, _, _, bf_a = self._zero
+    def tau_eta(self, mode, w_abs, tau_loss, lam_g):
+        """``tau_eta`` [N m] of a rolling gear: ``tau_a - tau_bf_a`` forward, ``tau_a + tau_bf_a``
+        backward, with ``tau_bf_a`` at the current speed ``w_abs`` (the torque at which the two
+        loss laws of the direction give the same loss). Its sign is the quadrant (``relation``)."""
+        bf_a = self._interp(w_abs)[4]
         tau_a = lam_g + tau_loss
-        tau_eta = tau_a - bf_a if mode == FORWARD else tau_a + bf_a
-        return 1 if tau_eta >= 0 else -1
+        return tau_a - bf_a if mode == FORWARD else tau_a + bf_a
+
+    @staticmethod
+    def driving_flange(mode, quadrant):
+        """+1 when flange_a drives (power flows from flange_a through the gear to flange_b), -1 when
+        flange_b drives: forward, quadrant +1 is the efficiency eta_mf1 (flange_a drives); backward,
+        quadrant +1 is eta_mf2 (flange_b drives)."""
+        return int(mode) * int(quadrant)
 
     def event_pair(self, mode, quadrant, w, tau_loss, lam_g, t, left):
         if mode == FREE or mode == HELD:
@@ -337,10 +347,7 @@ class LossyGear(FrictionDevice):
         if mode == STUCK:
             hi, lo = self._limits(tau_loss, lam_g)
             return hi - tau_loss, tau_loss - lo
-        bf_a = self._interp(abs(w))[4]
-        tau_a = lam_g + tau_loss
-        tau_eta = tau_a - bf_a if mode == FORWARD else tau_a + bf_a
-        return mode * w, quadrant * tau_eta
+        return mode * w, quadrant * self.tau_eta(mode, abs(w), tau_loss, lam_g)
 
     def first_step(self, old, w, crossed1, crossed2, initial, scale, arel):
         if self._ideal:
@@ -469,19 +476,49 @@ class FrictionSet:
             rhs[j] = r
         return tuple(rel), rhs
 
+    def _iterate_quadrants(self, v, lam_all, modes):
+        """IDA's residual and Jacobian: the quadrant of each rolling lossy gear from the sign of its
+        ``tau_eta`` at the current iterate (the segment's where it is exactly zero).
+
+        The loss law is then MSL's continuous V (forward) / roof (backward) in ``tau_a`` rather than
+        the segment's branch continued past the switch, so a switch that the root finding misses
+        (``tau_eta`` crossing zero and back inside one step) cannot leave the gear on the other
+        side's law, supplying power; BDF's error test sees the kink and IDA stays accurate
+        (measured: the same errors as with the segment's branch). The ODE-form solvers keep the
+        segment's branch, a smooth continuation that their error estimates need (with the
+        kinked law DOP853 at rtol 1e-6 was 1e-3 off), and sample the event functions inside
+        each step instead (``ode_driver.EventWatch``).
+        """
+        quadrant = self.quadrant
+        if not self._coupled_rows:
+            return quadrant
+        w = self.w_rel(v)
+        for j in self._coupled_rows:
+            m = int(modes[j])
+            if m != FORWARD and m != BACKWARD:
+                continue
+            te = self.devices[j].tau_eta(m, abs(w[j]), lam_all[self.offset + j], lam_all[self.coupled[j]])
+            q = 1 if te > 0 else -1 if te < 0 else quadrant[j]
+            if q != quadrant[j]:
+                if quadrant is self.quadrant:
+                    quadrant = quadrant.copy()
+                quadrant[j] = q
+        return quadrant
+
     # -- DAE rows ---------------------------------------------------------------
     def residual_rows(self, t, v, a, lam_all, modes):
         left = self._left(t)
         lam_f = lam_all[self.offset:]
         w = self.w_rel(v)
         arel = self.w_rel(a)
+        quadrant = self._iterate_quadrants(v, lam_all, modes)     # the law of the side that drives now
         out = np.empty(self.mf)
         for j, dev in enumerate(self.devices):
             m = modes[j]
             if m == STUCK:
                 out[j] = arel[j]
                 continue
-            c_own, c_cpl, r, _ = dev.relation(int(m), int(self.quadrant[j]), abs(w[j]), t, left)
+            c_own, c_cpl, r, _ = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left)
             out[j] = c_own * lam_f[j] - r
             if c_cpl:
                 out[j] += c_cpl * lam_all[self.coupled[j]]
@@ -507,9 +544,10 @@ class FrictionSet:
         pb.weighted(c.r_fric[cp], c.ilam[self.coupled[cp]], np.ones(int(cp.sum())), woff + k * j[cp] + 4)
         return k * self.mf
 
-    def weights(self, t, v, cj, modes):
+    def weights(self, t, v, cj, modes, lam_all=None):
         left = self._left(t)
         w = self.w_rel(v)
+        quadrant = self.quadrant if lam_all is None else self._iterate_quadrants(v, lam_all, modes)
         out = np.zeros(5 * self.mf)
         for j, dev in enumerate(self.devices):
             m = modes[j]
@@ -517,7 +555,7 @@ class FrictionSet:
                 out[5 * j + 1] = cj
                 out[5 * j + 2] = 1.0
             else:
-                c_own, c_cpl, _, drhs = dev.relation(int(m), int(self.quadrant[j]), abs(w[j]), t, left)
+                c_own, c_cpl, _, drhs = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left)
                 out[5 * j] = -drhs * np.sign(w[j])
                 out[5 * j + 3] = c_own
                 out[5 * j + 4] = c_cpl
@@ -618,8 +656,17 @@ class FrictionSet:
 
     # -- mode logic -----------------------------------------------------------------
     def settle(self, t, state, modes, crossed=None, initial=False):
-        """Iterate the mode logic at time t to a consistent set; returns (y, yp, modes, changes)."""
+        """Iterate the mode logic at time t to a consistent set; returns (y, yp, modes, changes).
+
+        ``changes``: ``(device name, old, new, kind)`` per change, ``kind`` "mode" (old and new
+        mode) or "driving side" (a lossy gear rolling on with power now flowing the other way;
+        old and new are the driving flange, ``LossyGear.driving_flange``).
+        """
         c = self.c
+        if initial:
+            self.quadrant[:] = 1      # a fresh start decides the driving sides from the state alone
+        side_old = [d.driving_flange(m0, q) if d.coupled else 0
+                    for d, m0, q in zip(self.devices, np.asarray(modes, dtype=int), self.quadrant)]
         left = False   # the new segment: right limits
         if state is None:
             y0, yp0 = c.initial_y(t, np.full(self.mf, FREE))
@@ -645,7 +692,7 @@ class FrictionSet:
                 new[j] = dev.first_step(int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
                                         initial, scale, arel[j])
                 if old[j] in (FORWARD, BACKWARD) and new[j] == old[j] and crossed[2 * j + 1] != 0:
-                    self.quadrant[j] = -self.quadrant[j]        # the driving side changed
+                    self.quadrant[j] = -self.quadrant[j]   # the driving side changed (checked in step 2)
                 continue
             if dev.one_way:
                 new[j] = self._one_way_step(dev, j, old[j], engaged, w[j], lam[self.offset + j],
@@ -689,7 +736,8 @@ class FrictionSet:
                         if d:
                             new[j] = d
                             changed = True
-                    elif new[j] in (FORWARD, BACKWARD) and self._fix_quadrant(j, dev, new, lam):
+                    elif new[j] in (FORWARD, BACKWARD) and \
+                            self._fix_quadrant(j, dev, new, t, x, v, z, a, lam, dz):
                         changed = True
                     continue
                 if new[j] != STUCK:
@@ -713,13 +761,41 @@ class FrictionSet:
         else:
             raise SimulationError(f"stick/slip logic did not settle at t={t:.9g} for "
                                   f"{[d.name for d in self.devices]}")
-        y, yp = c.assemble_y(t, x, v, z, new)
+        y, yp = self._assemble_restart(t, x, v, z, new, lam)
         self._relief = self._relief_events(t, y, yp, new, scale)
         self._ev_key = None
         self.engaged = np.array([d.normal_force(t, False) > 0 for d in self.devices])
-        changes = [(self.devices[j].name, int(old[j]), int(new[j])) for j in range(self.mf)
-                   if old[j] != new[j] and not initial]
+        changes = []
+        if not initial:
+            for j, dev in enumerate(self.devices):
+                if old[j] != new[j]:
+                    changes.append((dev.name, int(old[j]), int(new[j]), "mode"))
+                if dev.coupled and old[j] in (FORWARD, BACKWARD) and new[j] in (FORWARD, BACKWARD):
+                    side = dev.driving_flange(new[j], self.quadrant[j])
+                    if side != side_old[j]:
+                        changes.append((dev.name, side_old[j], side, "driving side"))
         return y, yp, new, changes
+
+    def _assemble_restart(self, t, x, v, z, modes, lam):
+        """Consistent ``(y, y')`` of the settled modes.
+
+        A lossy gear whose driving side was decided at a tie (``_fix_quadrant``: by where the
+        torque goes) may have ``tau_eta`` a round-off on the other side. IDA's residual takes the
+        law by the sign of ``tau_eta`` (``_iterate_quadrants``), so the restart values are
+        assembled with that law: they then satisfy the residual to round-off (with the segment's
+        law they missed it by up to 1e-9 of the torques, and IDA at rtol 1e-10 failed its error
+        test at the restart). Both laws agree there to that round-off; the segment keeps its
+        quadrant for the event functions.
+        """
+        c = self.c
+        if not self._coupled_rows:
+            return c.assemble_y(t, x, v, z, modes)
+        keep = self.quadrant.copy()
+        self.quadrant = self._iterate_quadrants(v, lam, modes).copy()
+        try:
+            return c.assemble_y(t, x, v, z, modes)
+        finally:
+            self.quadrant = keep
 
     def _share_redundant(self, t, x, v, z, modes) -> bool:
         """Resolve stuck devices that lock a motion already locked by others.
@@ -810,13 +886,56 @@ class FrictionSet:
             out.append((j, int(c.ilam[self.offset + h]), float(np.sign(cj)), tol))
         return out
 
-    def _fix_quadrant(self, j, dev, modes, lam):
-        """Lossy gear rolling: make the assumed driving side agree with the torque (once per settle)."""
-        flips = self.__dict__.setdefault("_flips", set())
-        q = dev.driving_side(int(modes[j]), lam[self.offset + j], lam[self.coupled[j]])
-        if q == self.quadrant[j] or (j in flips):
+    def _fix_quadrant(self, j, dev, modes, t, x, v, z, a, lam, dz):
+        """Lossy gear rolling: make the assumed driving side (quadrant) agree with the torque.
+
+        The quadrant is the sign of ``tau_eta`` (``LossyGear.tau_eta``) of the solution computed
+        with it. For one gear the loss law ``tau_loss = k tau_a + b`` is a V (forward) or a roof
+        (backward) in ``tau_a`` with slopes ``k`` of ``1 - eta_mf1`` in [0, 1) and ``1 - 1/eta_mf2``
+        <= 0, while the rest of the system gives ``tau_a = A + beta tau_loss`` with ``0 <= beta
+        <= 1`` (positive definite masses; ``beta = J_a r^2 / (J_b + J_a r^2)`` for two inertias,
+        whatever the sign of the ratio r). ``tau_loss - k (A + beta tau_loss) = b`` has then exactly
+        one solution over both branches: one quadrant is consistent, and a wrong one is put right by
+        one flip. The budget is one flip per set of the other devices' modes and gears' sides (they
+        change ``A``); it was one per gear and event, and a flip made while a brake on the same
+        motion was still stuck could not be undone after the brake broke away (the gear supplied
+        840 W).
+
+        At the switch itself (an event of ``tau_eta``, or any instant where ``|tau_eta|`` is at
+        round-off) both quadrants give the same loss, and the sign of ``tau_eta`` is round-off
+        or the algebraic error of the solver: the side it moves to decides. That direction does
+        not depend on the quadrant used (both give the same accelerations there, and
+        ``d tau_a/dt = (dA/dt) / (1 - beta k)`` with ``1 - beta k > 0``), so it comes from a
+        forward difference along the motion with the current one. Deciding by the round-off
+        sign instead left the gear on the wrong law with its event function negative and never
+        re-armed: the gear then supplied power, by an amount that depended on the tolerance.
+        """
+        c = self.c
+        m = int(modes[j])
+        i_own, i_cpl = self.offset + j, self.coupled[j]
+        w = float(self.w_rel(v)[j])
+        te = dev.tau_eta(m, abs(w), lam[i_own], lam[i_cpl])
+        torque = max(1.0, abs(lam[i_own]), abs(lam[i_cpl]))     # N m, the scale of round-off in te
+        q = 1 if te > 0 else -1
+        if abs(te) <= 1e-9 * torque:
+            q = int(self.quadrant[j])           # kept when the torque does not move either (tangency)
+            d = min(1e-7 * max(1.0, abs(t)), 0.25 * (c._t_right - t))    # stay inside the segment
+            if d > 0:
+                _, lam2, _ = c.accelerations(t + d, x + d * v, v + d * a, z + d * dz, modes)
+                w2 = float(self.w_rel(v + d * a)[j])
+                step = dev.tau_eta(m, abs(w2), lam2[i_own], lam2[i_cpl]) - te
+                if abs(step) > 64 * np.finfo(float).eps * torque:
+                    q = 1 if step > 0 else -1
+        if q == self.quadrant[j]:
             return False
-        flips.add(j)
+        # one flip per set of the other devices' modes and gears' sides; a second one for the same set
+        # would undo it: only a law with a jump (eta = 1 with tau_bf1 != tau_bf2) at its jump does that
+        others = self.quadrant.copy()
+        others[j] = 0
+        key = (j, modes.tobytes(), others.tobytes())
+        if key in self._flips:
+            return False
+        self._flips.add(key)
         self.quadrant[j] = q
         return True
 

@@ -235,8 +235,8 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
             y_ev, yp_ev = np.array(sol.y_events[-1]), np.array(sol.yp_events[-1])
             rec.add(t_ev, y_ev, yp_ev, modes)
             y, yp, new_modes, changes = fr.settle(t_ev, (y_ev, yp_ev), modes, crossed=sol.i_events[-1])
-            for (name, old, new) in changes:
-                events.append(Event(t_ev, name, old, new))
+            for (name, old, new, kind) in changes:
+                events.append(Event(t_ev, name, old, new, kind))
                 guard.record(t_ev, name)
             modes = new_modes
             rec.add(t_ev, y, yp, modes)
@@ -257,8 +257,8 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
         c._t_right = t_stop
         if fr:
             y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
-            for (name, old, new) in changes:
-                events.append(Event(t, name, old, new))
+            for (name, old, new, kind) in changes:
+                events.append(Event(t, name, old, new, kind))
                 guard.record(t, name)
             modes = new_modes
         else:

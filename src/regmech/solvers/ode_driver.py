@@ -400,12 +400,13 @@ class _Sink:
         if self.rec is not None:
             self.rec.add(t, y, yp, modes, left=left)
 
-    def state(self, t, u, modes, exact, left=False):
-        """A row from the ODE state; ``exact``: u is a step's end value, not interpolated."""
+    def state(self, t, u, modes, exact, left=False, row=None):
+        """A row from the ODE state; ``exact``: u is a step's end value, not interpolated;
+        ``row``: its ``consistent_row`` when already computed (``EventWatch.dips``)."""
         if exact and self.probe is not None:
             self.probe.add(t, u)
         if self.rec is not None:
-            self.rec.add(t, *consistent_row(self.c, t, u, modes), modes, left=left)
+            self.rec.add(t, *(row or consistent_row(self.c, t, u, modes)), modes, left=left)
 
 
 def consistent_row(c, t, u, modes):
@@ -432,6 +433,18 @@ class EventWatch:
     A function that is not positive at a (re)start is *disarmed* until it
     becomes positive: the mode logic has just accepted that state, and a
     "crossing" at the restart instant would loop at the event.
+
+    The functions are also checked at the output instants inside each step
+    (``dips``; their rows are computed for the output anyway): integrated with
+    the smooth continuation of the segment's laws, a function can cross zero
+    and come back within one large step, which the step ends alone do not
+    see. Found on DOP853 at rtol 1e-6 (a lossy gear between a brake and sine
+    loads): a slip that reversed and returned, a sine normal force that
+    engaged and released a brake, and a lossy gear's driving side, each inside
+    one 0.2-0.3 s step, so that friction drove the motion, the brake never
+    acted and the gear supplied power. So a run finds every mode change that
+    lasts longer than its output interval ``dt_out``; a shorter excursion
+    inside one step can still be missed (a finer ``dt_out`` resolves it).
     """
 
     def __init__(self, c, friction):
@@ -451,16 +464,32 @@ class EventWatch:
         self.armed |= values > 0
         return np.nonzero(hit)[0]
 
-    def locate(self, stepper, modes, which):
+    def dips(self, t_old, samples, modes, rows):
+        """Crossings at the instants ``samples`` [(t, u)] inside the last step (in time order),
+        before ``crossed`` looks at its end: [(index, last time the function was positive, first
+        time it was not)]. The consistent rows computed on the way go into ``rows`` (by t)."""
+        armed = self.armed.copy()
+        last_pos = np.full(len(armed), t_old)
+        for s, u in samples:
+            y, yp = rows[s] = consistent_row(self.c, s, u, modes)
+            vals = np.asarray(self.fr.event_values(s, y, yp, modes), float)
+            hit = armed & (vals <= 0)
+            if hit.any():
+                return [(int(k), float(last_pos[k]), s) for k in np.nonzero(hit)[0]]
+            armed |= vals > 0
+            last_pos[vals > 0] = s
+        return []
+
+    def locate(self, stepper, modes, which, dips=()):
         """Earliest crossing in the last step: (t*, u*, index).
 
         Illinois-modified regula falsi on the stepper's interpolant, keeping a
         bracket [a, b] with value > 0 at a and <= 0 at b; returns b, so the
         restart point is on the crossed side (the condition has strictly flipped).
+        ``which`` cross by the step end, ``dips`` (index, a, b) inside the step (``dips``).
         """
         best = None
-        for k in which:
-            a, b = stepper.t_old, stepper.t
+        for k, a, b in [(k, stepper.t_old, stepper.t) for k in which] + list(dips):
             fa = self._value_at(stepper, a, modes, k)
             fb = self._value_at(stepper, b, modes, k)
             if not fa > 0:          # the interpolant disagrees at the step start: crossing at once
@@ -649,8 +678,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
             crossed = np.zeros(fr.n_events, int)
             crossed[end.crossed] = -1
             y, yp, new_modes, changes = fr.settle(t, (y_ev, yp_ev), modes, crossed=crossed)
-            for (comp, old, new) in changes:
-                events.append(Event(t, comp, old, new))
+            for (comp, old, new, kind) in changes:
+                events.append(Event(t, comp, old, new, kind))
                 guard.record(t, comp)
             if len(events) > max_events:
                 raise SimulationError(f"more than {max_events} mode changes in model '{model.name}'; raise "
@@ -668,8 +697,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         if fr:
             y, yp = c.y_from_ode(t, u, modes)
             y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
-            for (comp, old, new) in changes:
-                events.append(Event(t, comp, old, new))
+            for (comp, old, new, kind) in changes:
+                events.append(Event(t, comp, old, new, kind))
                 guard.record(t, comp)
             modes = new_modes
             u = c.ode_state(y)
@@ -718,18 +747,25 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
             if diverged is not None:
                 raise _divergence_error(problem, stepper, name, diverged, growth, explicit, t, u)
             t_hit = None
+            # the output instants this step covers (fixed-step methods land on them: at its end)
+            k_end = k_next
+            while k_end < len(inner) and inner[k_end] <= stepper.t:
+                k_end += 1
+            covered = [(tq, tq == stepper.t) for tq in inner[k_next:k_end]]
+            rows, states = {}, {}
             if watch is not None:
+                inside = [(tq, states.setdefault(tq, stepper.interpolate(tq))) for tq, exact in covered if not exact]
+                dips = watch.dips(stepper.t_old, inside, modes, rows) if inside else []
                 which = watch.crossed(watch.values(stepper.t, stepper.u, modes))
-                if len(which):
-                    t_hit, u_hit, k_hit = watch.locate(stepper, modes, which)
+                if len(which) or dips:
+                    t_hit, u_hit, k_hit = watch.locate(stepper, modes, which, dips)
             t_upto = stepper.t if t_hit is None else t_hit
-            while k_next < len(inner) and inner[k_next] <= t_upto:
-                tq = inner[k_next]
-                if t_hit is not None and tq == t_hit:
-                    break                   # recorded as the event's "before" row
-                exact = tq == stepper.t
+            for tq, exact in covered:
+                if tq > t_upto or (t_hit is not None and tq == t_hit):
+                    break                   # past the event, or recorded as the event's "before" row
                 if exact or out.rec is not None:        # a companion run keeps exact step ends only
-                    out.state(tq, stepper.u if exact else stepper.interpolate(tq), modes, exact)
+                    uq = stepper.u if exact else states.get(tq)
+                    out.state(tq, stepper.interpolate(tq) if uq is None else uq, modes, exact, row=rows.get(tq))
                 k_next += 1
             if t_hit is not None:
                 return SegmentEnd(t_hit, u_hit, k_hit)
