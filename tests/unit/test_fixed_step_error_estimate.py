@@ -179,7 +179,7 @@ def test_a_2h_estimate_outside_the_asymptotic_range_is_checked_at_h_over_2():
 
 def test_expm_round_off_floor_is_refused_up_front_naming_the_stiff_link():
     # the floor comes from the set-up, not the steps: every run shares it, so it is decided from the
-    # spectrum before the run (eps * 1e7^2 = 2.2e-2 > tol), the same on every BLAS build
+    # spectrum before the run (4 eps * 4.1e6^2 = 1.5e-2 > tol, link spread 4.1e6), the same on every BLAS build
     from regmech.bench.hard_models import stretched_chain
     chain, signal = stretched_chain(1e7)
     m = chain.to_model(signal)
@@ -194,16 +194,16 @@ def test_expm_round_off_floor_is_refused_up_front_naming_the_stiff_link():
     assert res.stats.error_estimate >= res.stats.extra["error_floor"] > 0
 
 
-@pytest.mark.parametrize("ratio", [1e4, 1e6])
+@pytest.mark.parametrize("ratio", [1e4, 1e6, 1e7])
 def test_expm_round_off_bound_covers_the_error_against_a_30_digit_answer(ratio):
-    # the a-priori bound must lie above the true error at any step (measured 0.01..0.25 of it); the error is
+    # the a-priori bound must lie above the true error at any step (measured 0.08..0.23 of it); the error is
     # the same at every step (a set-up floor), so the bound is checked at a coarse and a fine step
     import numpy as np
     from regmech.bench.hard_models import stretched_chain
     chain, signal = stretched_chain(ratio)
     m = chain.to_model(signal)
     for h in (0.1, 0.005):
-        res = m.simulate(4.0, dt_out=0.1, solver="expm", h=h)
+        res = m.simulate(4.0, dt_out=0.1, solver="expm", h=h, tol=0.5)
         x, _ = chain.exact(res.t, digits=30)
         err = max(np.max(np.abs(res[f"{nm}.phi"] - x[:, i])) for i, nm in enumerate(chain.names)) / np.ptp(x)
         assert err <= res.stats.extra["error_floor"] <= res.stats.error_estimate
