@@ -9,7 +9,8 @@ Each model runs in a child process of its own: a run past ``--run-limit`` second
 child (a cooperative alarm between residual calls; the finding "budget"), and a child that does not answer
 within the model's hard limit (``--model-limit``, default 6 x run limit + 60 s) is killed (a hang: the
 finding "hang"). Verdicts are appended to ``--jsonl`` as they come, so ``--resume`` continues an interrupted
-campaign; the Markdown report (``--out``) is written from that file at the end (``--report-only`` rewrites it).
+campaign and ``--recheck`` runs the models with findings again (after a fix); the Markdown report (``--out``)
+is written from that file at the end (``--report-only`` rewrites it).
 """
 
 from __future__ import annotations
@@ -102,11 +103,15 @@ def _poll(job, model_limit):
 
 
 def load(path):
+    from regmech.bench.fuzz import GROSS
     out = {}
     if path.exists():
         for line in path.read_text().splitlines():
             if line.strip():
                 v = json.loads(line)
+                for f in v["findings"]:     # verdicts written before the wrong-answer kind existed
+                    if f["kind"] == "disagreement" and v.get("pairs", {}).get(f["run"], (0.0,))[0] > GROSS:
+                        f["kind"] = "wrong-answer"
                 out[v["seed"]] = v
     return out
 
@@ -115,8 +120,15 @@ def campaign(args):
     jsonl = Path(args.jsonl)
     jsonl.parent.mkdir(parents=True, exist_ok=True)
     seeds = args.only if args.only else list(range(args.seed, args.seed + args.models))
-    done = load(jsonl) if args.resume else {}
-    if not args.resume and not args.only and jsonl.exists():
+    done = load(jsonl) if args.resume or args.recheck else {}
+    if args.recheck:
+        # run again the models with findings (after a change of the checks or a fix) and those with a
+        # family of --recheck-with; keep the other verdicts
+        again = set(args.recheck_with or ())
+        seeds = [s for s in seeds if s in done and (done[s]["status"] == "finding" or again & set(done[s]["families"]))]
+        done = {s: v for s, v in done.items() if s not in seeds}
+        jsonl.write_text("".join(json.dumps(v) + "\n" for v in done.values()))
+    elif not args.resume and not args.only and jsonl.exists():
         jsonl.unlink()
     todo = [s for s in seeds if s not in done]
     model_limit = args.model_limit or 6 * args.run_limit + 60.0
@@ -162,7 +174,7 @@ def _cause(f):
     if kind in ("loss-supplies-power", "lossless-dissipates"):
         cls = (f.get("where") or "").split(" ")[0]
         return f"{kind}: {cls}"
-    if kind in ("disagreement", "range-accuracy"):
+    if kind in ("wrong-answer", "disagreement", "range-accuracy"):
         pair = run.split("/")
         return f"{kind}: {' vs '.join(sorted(pair))}"
     if kind in ("power-balance", "energy-books", "budget", "nonfinite"):
@@ -186,7 +198,7 @@ def report(jsonl, out, wall, args):
         verdicts = [v for v in verdicts if v["seed"] in keep]
     n = len(verdicts)
     status = collections.Counter(v["status"] for v in verdicts)
-    lines = ["## Reliability: random regular drivetrains", ""]
+    lines = ["# Reliability: random regular drivetrains", ""]
     try:
         import numpy, scipy
         versions = f"numpy {numpy.__version__}, scipy {scipy.__version__}"
@@ -232,7 +244,7 @@ def report(jsonl, out, wall, args):
                 continue
             seen.add(key)
             groups[key].append((v, f))
-    lines += ["### Findings by kind", ""]
+    lines += ["## Findings by kind", ""]
     if not groups:
         lines += ["None.", ""]
     else:
@@ -251,7 +263,7 @@ def report(jsonl, out, wall, args):
             key = f"{label}: {_norm_refusal(cls, msg)}"
             ref[key] += 1
             ref_seeds[key].append(v["seed"])
-    lines += ["### Refusals (a solver stopped with a regmech error)", ""]
+    lines += ["## Refusals (a solver stopped with a regmech error)", ""]
     if not ref:
         lines += ["None.", ""]
     else:
@@ -262,7 +274,7 @@ def report(jsonl, out, wall, args):
     # coverage
     cov = collections.Counter(f for v in verdicts for f in v["families"])
     bad = collections.Counter(f for v in verdicts if v["status"] == "finding" for f in v["families"])
-    lines += ["### Families covered", "",
+    lines += ["## Families covered", "",
               "| family | models | with findings |", "|---|---:|---:|"]
     for fam in FAMILIES:
         lines.append(f"| {fam} | {cov[fam]} | {bad[fam]} |")
@@ -276,7 +288,7 @@ def report(jsonl, out, wall, args):
         old = Path(out).read_text()
         if CAUSES_BEGIN in old and CAUSES_END in old:
             kept = old[old.index(CAUSES_BEGIN): old.index(CAUSES_END) + len(CAUSES_END)]
-    lines += ["### Findings by cause (written by hand from the verdicts; kept when the report is rewritten)", "",
+    lines += ["## Findings by cause (written by hand from the verdicts; kept when the report is rewritten)", "",
               kept or f"{CAUSES_BEGIN}\n(not analysed yet)\n{CAUSES_END}", ""]
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     Path(out).write_text("\n".join(lines) + "\n")
@@ -296,6 +308,8 @@ def main(argv=None):
     ap.add_argument("--out", default=str(RESULTS / "fuzz.md"), help="Markdown report")
     ap.add_argument("--jsonl", default=str(RESULTS / "fuzz" / "verdicts.jsonl"), help="verdicts, one JSON a line")
     ap.add_argument("--resume", action="store_true", help="keep the verdicts already in --jsonl, run the rest")
+    ap.add_argument("--recheck", action="store_true", help="run the models with findings in --jsonl again")
+    ap.add_argument("--recheck-with", nargs="+", metavar="FAMILY", help="with --recheck: also the models with these")
     ap.add_argument("--report-only", action="store_true", help="rewrite the report from --jsonl")
     ap.add_argument("--show", type=int, help="print the reproducer script of this seed and exit")
     ap.add_argument("--verbose", action="store_true")
