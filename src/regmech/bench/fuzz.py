@@ -521,6 +521,9 @@ class _Gen:
             var = self.add("mfw", "MagicFormulaWheel", radius=_fmt(radius), J=_fmt(J), fn=_fmt(fn),
                            D=_fmt(self.u(0.3, 1.1)))
             hub = self._body(var, f"{var}.hub", "rotational", J, "mf_wheel")
+            # the slip law is stiff near standstill: dF/dv = fn D C B / v_eps (defaults C 1.9, B 10,
+            # v_eps 0.5 m/s) acting on the wheel inertia seen at the tread, J / r^2: a rate [1/s]
+            self.omega_max = max(self.omega_max, radius ** 2 * fn * float(_fmt(self.comps[var]["kw"]["D"])) * 38.0 / J)
             self.connect(f"{var}.axle", self.flange(body))
         # the drive: a shaft from an existing rotational mass to the hub
         if self.chance(0.5):
