@@ -10,7 +10,9 @@
   timed apart), failures recorded, per-run time limit; ``report``: CSV,
   Markdown, log-log plots; ``cli``: ``regmech bench``;
 * ``hard``: the hard-case suite (stretched spectra, extreme parameters,
-  stick/slip, long horizons, discontinuous inputs) with analytic answers.
+  stick/slip, long horizons, discontinuous inputs) with analytic answers;
+* ``fuzz``: random regular drivetrains of every component family and the
+  reliability checks run on each (``tests/fuzz``, ``benchmarks/fuzz.py``).
 """
 
 from .metrics import Errors, Trace, compare, sample, switch_time_error, trace_of

@@ -1,0 +1,1141 @@
+"""Reliability campaign: random *regular* drivetrains, run on several solvers and checked.
+
+Two halves, used by ``tests/fuzz`` (hypothesis, a fixed-seed subset) and by
+``benchmarks/fuzz.py`` (a long campaign with a report):
+
+**The generator** (``generate(rng)``, ``generate_seed(seed)``) grows a model
+from one mass by attaching components of every family (``FAMILIES``) to the
+masses already there, with parameters drawn across decades. It builds only
+models that obey the rules of the regular mechanical system, so a
+``RegularityError`` is a bug of the generator, never a finding:
+
+* every device flange lands on a mass (``Inertia``, ``Mass``, a wheel's
+  inertia or axle) or on the ground (``Fixed``); devices never meet;
+* friction devices have a mass (or the ground) on each side;
+* the model grows as a tree of rigid links: a rigid device (rigid ``Shaft``,
+  gears, planetary, differential) always brings at least one new mass, so
+  rigid constraints never close a loop; only compliant and friction devices
+  close loops, and only between masses of different rigid groups;
+* at most one prescribed-motion source (``Speed``, ``Position``, ...) per
+  rigid group, and none on a group that has a start value; at most one mass
+  per rigid group gets start values (a second could contradict it);
+* link stiffnesses come from a natural frequency drawn in [1, 10^2.5] rad/s
+  and the masses they join, so the spectrum stays where a tight reference
+  can resolve it (IDA's round-off refusal at rtol 1e-10 starts near a
+  spread of 7e3).
+
+A generated model is a ``ModelSpec``: the Python *source* of a script that
+builds it with the public API only. ``spec.build()`` executes exactly that
+source, so ``spec.script()`` is a standalone reproducer of any finding.
+
+**The checks** (``evaluate(spec)``) run the model on every solver of
+``RUNS`` (two at the answer tolerance rtol 1e-8, two tight references, and
+``expm`` when the model is linear between friction events) and return a
+``Verdict``: ``pass``, ``refused`` (a solver stopped with a regmech error:
+its class and message) or ``finding`` (a list of ``Finding(kind, detail)``):
+
+``crash``
+    an exception that is not a regmech error;
+``budget``
+    a run exceeded its work budget (residual/RHS evaluations) or time limit;
+``nonfinite``
+    NaN or inf in a returned signal;
+``power-balance``
+    at an output instant, ``sum_b m_b v_b a_b + sum_d P_d != 0`` (the rate of
+    kinetic energy against the power all devices absorb, sources included,
+    from the result's own ``.kinetic``/``.a``/``.power`` signals) beyond the
+    run's claimed error times the power scale;
+``energy-books``
+    the books ``kinetic + stored + dissipated = work in`` do not close
+    (integrated on the output grid, see ``energy_checks``);
+``loss-supplies-power``
+    a friction or loss element (clutch, brake, one-way clutch, bearing
+    friction, friction contact, lossy gear and planetary, damper, road load,
+    tyre) supplies power, or a dissipative element with stored energy
+    (spring-damper, elasto-backlash) has falling accumulated dissipation;
+    ``lossless-dissipates``: an ideal element (spring, rigid shaft, ideal
+    gear, planetary, differential, rolling, backlash) dissipates or supplies;
+``wrong-answer``, ``disagreement``, ``range-accuracy``
+    two solver runs that both returned differ by more than the sum of what
+    each claims (``claimed_error``, ``agreement``): by far, by a little, or
+    only against the range of a signal that varies little;
+``generator``
+    the generated model is refused before any solver runs (a bug here).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+# ============================================================================ generator
+
+#: component families and their weight in a random plan (every family appears in a long campaign)
+FAMILIES = {
+    # masses are created by the others; links
+    "spring": 3, "damper": 2, "spring_damper": 3, "shaft_rigid": 2, "shaft_elastic": 3,
+    "backlash": 2, "elasto_backlash": 2,
+    # gears
+    "ideal_gear": 3, "lossy_gear": 3, "planetary": 2, "lossy_planetary": 2, "differential": 2,
+    "limited_slip_differential": 2,
+    # friction
+    "clutch": 3, "brake": 3, "one_way_clutch": 2, "bearing_friction": 2, "friction_contact": 3,
+    # vehicle
+    "wheel": 2, "magic_formula_wheel": 1, "road_load": 1, "engine": 1,
+    # sources
+    "torque": 4, "force": 3, "speed": 2, "position": 2,
+}
+#: signal types drawn for sources and normal forces ("callable": a lambda of t)
+SIGNALS = ("Constant", "Step", "Ramp", "Sine", "Table", "Pulse", "callable")
+#: families that need a translational mass to attach to
+TRANSLATIONAL_FAMILIES = {"friction_contact", "force", "road_load"}
+SOURCE_FAMILIES = {"torque", "force", "speed", "position", "engine"}
+
+
+def _fmt(x: float) -> str:
+    """A float written with 4 significant digits (the script stays readable; the value is what it says)."""
+    x = float(f"{float(x):.4g}")
+    return repr(x) if x != int(x) or abs(x) >= 1e15 else repr(float(int(x)))
+
+
+@dataclass
+class ModelSpec:
+    """A generated model: the statements that build it (public API only) and how to run it."""
+
+    name: str
+    lines: list
+    t_end: float
+    dt_out: float
+    families: list
+    seed: int | None = None
+    linear: bool | None = None      # filled by evaluate(): expm applies
+
+    def source(self) -> str:
+        head = ["import math", "import regmech as rm", "from regmech.components import *",
+                "from regmech.signals import *", "", f"m = rm.Model({self.name!r})"]
+        return "\n".join(head + list(self.lines)) + "\n"
+
+    def script(self, solver: str = "ida", **options) -> str:
+        """A standalone reproducer: the model, then one run."""
+        opts = "".join(f", {k}={v!r}" for k, v in options.items())
+        return (self.source() + f"res = m.simulate({self.t_end!r}, dt_out={self.dt_out!r}, "
+                f"solver={solver!r}{opts})\nprint(res.stats)\n")
+
+    def build(self):
+        """Execute the source and return the model ``m`` (the reproducer runs exactly this)."""
+        ns: dict = {}
+        exec(compile(self.source(), f"<fuzz model {self.name}>", "exec"), ns)   # noqa: S102 - our own text
+        return ns["m"]
+
+
+@dataclass
+class _Body:
+    var: str            # the component variable that carries the start values (or None: not startable)
+    flange: str         # expression of a flange of the mass ("J3.flange_b", "wheel1.hub")
+    domain: str
+    mass: float
+    group: int
+    start: str | None   # "inertia" | "mass" | "wheel" | None
+
+
+class _Gen:
+    """One model's generation state (see the module docstring for the rules it keeps)."""
+
+    def __init__(self, rng, name, references="any"):
+        self.rng = rng
+        self.name = name
+        self.references = references
+        self.comps: dict[str, dict] = {}          # var -> {"cls": ..., "kw": {param: source}}
+        self.order: list[str] = []
+        self.conns: list[tuple[str, str]] = []
+        self.bodies: list[_Body] = []
+        self.parent: dict[int, int] = {}
+        self.driven: set[int] = set()              # rigid groups with a prescribed-motion source
+        self.high_start: dict[int, _Body] = {}      # group -> body that must start fast (one-way clutch side b)
+        self.count: dict[str, int] = {}
+        self.used: list[str] = []
+        self.grounds: dict[str, str] = {}
+        self.t_end = 10 ** rng.uniform(-0.7, 0.3)
+        self.tau_scale = 10 ** rng.uniform(-1.0, 2.5)     # torques [N m]
+        self.f_scale = 10 ** rng.uniform(0.0, 3.0)        # forces [N]
+        self.omega_max = 1.0
+
+    # -- helpers -------------------------------------------------------------
+    def u(self, a, b):
+        return self.rng.uniform(a, b)
+
+    def dec(self, a, b):
+        """A value spread evenly over the decades 10^a .. 10^b."""
+        return 10 ** self.rng.uniform(a, b)
+
+    def chance(self, p):
+        return self.rng.random() < p
+
+    def pick(self, seq):
+        return seq[self.rng.randrange(len(seq))]
+
+    def new_name(self, prefix):
+        k = self.count.get(prefix, 0) + 1
+        self.count[prefix] = k
+        return f"{prefix}{k}"
+
+    def add(self, prefix, cls, **kw):
+        var = self.new_name(prefix)
+        self.comps[var] = {"cls": cls, "kw": dict(kw)}
+        self.order.append(var)
+        return var
+
+    def connect(self, a, b):
+        self.conns.append((a, b))
+
+    def ground(self, domain):
+        if domain not in self.grounds:
+            var = "fixed" if domain == "rotational" else "wall"
+            self.comps[var] = {"cls": "Fixed", "kw": {} if domain == "rotational" else {"domain": "'translational'"}}
+            self.order.append(var)
+            self.grounds[domain] = var
+        return f"{self.grounds[domain]}.flange"
+
+    def find(self, g):
+        while self.parent[g] != g:
+            self.parent[g] = self.parent[self.parent[g]]
+            g = self.parent[g]
+        return g
+
+    def union(self, *bodies):
+        roots = {self.find(b.group) for b in bodies}
+        root = min(roots)
+        for r in roots:
+            self.parent[r] = root
+        if roots & self.driven:
+            self.driven |= {root}
+        for r in roots:
+            if r in self.high_start and root not in self.high_start:
+                self.high_start[root] = self.high_start[r]
+
+    def _body(self, var, flange, domain, mass, start):
+        g = len(self.parent)
+        self.parent[g] = g
+        b = _Body(var, flange, domain, mass, g, start)
+        self.bodies.append(b)
+        return b
+
+    def new_mass(self, domain, mass=None):
+        if domain == "rotational":
+            J = mass if mass is not None else self.dec(-2.0, 1.0)
+            var = self.add("J", "Inertia", J=_fmt(J))
+            return self._body(var, f"{var}.{self.pick(('flange_a', 'flange_b'))}", domain, float(_fmt(J)), "inertia")
+        m = mass if mass is not None else self.dec(-1.0, 3.0)
+        var = self.add("M", "Mass", m=_fmt(m))
+        return self._body(var, f"{var}.{self.pick(('flange_a', 'flange_b'))}", domain, float(_fmt(m)), "mass")
+
+    def flange(self, body):
+        """A flange of the mass (inertias and masses have two; either one is the same node)."""
+        if body.start in ("inertia", "mass"):
+            return f"{body.var}.{self.pick(('flange_a', 'flange_b'))}"
+        return body.flange
+
+    def anchor(self, domain):
+        """An existing mass of the domain to attach to (a new one when there is none)."""
+        cands = [b for b in self.bodies if b.domain == domain]
+        return self.pick(cands) if cands else self.new_mass(domain)
+
+    def stiffness(self, *masses):
+        """c = omega^2 * reduced mass, omega drawn in [1, 10^2.5] rad/s."""
+        omega = self.dec(0.0, 2.5)
+        self.omega_max = max(self.omega_max, omega)
+        if len(masses) == 1:
+            red = masses[0]
+        else:
+            red = masses[0] * masses[1] / (masses[0] + masses[1])
+        return omega ** 2 * red, omega, red
+
+    def damping(self, omega, red, allow_zero=True):
+        if allow_zero and self.chance(0.2):
+            return 0.0
+        return 2.0 * self.dec(-3.0, 0.0) * omega * red
+
+    # -- signals -------------------------------------------------------------
+    def signal(self, lo, hi, kinds=SIGNALS, start_at_zero=False):
+        """Source text of a signal of a random type with values in [lo, hi] (``start_at_zero``: a Sine
+        starts at t = 0, so that it has no jump or corner later)."""
+        kind = self.pick(kinds)
+        T = self.t_end
+        val = lambda: self.u(lo, hi)                               # noqa: E731
+        if kind == "Constant":
+            return f"Constant({_fmt(val())})"
+        if kind == "Step":
+            a, b = val(), val()
+            return f"Step(height={_fmt(b - a)}, start_time={_fmt(self.u(0.05, 0.9) * T)}, offset={_fmt(a)})"
+        if kind == "Ramp":
+            a, b = val(), val()
+            t0 = self.u(0.0, 0.6) * T
+            return (f"Ramp(height={_fmt(b - a)}, duration={_fmt(self.u(0.05, 0.5) * T)}, start_time={_fmt(t0)}, "
+                    f"offset={_fmt(a)})")
+        if kind == "Sine":
+            mid, half = (lo + hi) / 2, (hi - lo) / 2
+            off = mid + self.u(-0.5, 0.5) * half
+            amp = (half - abs(off - mid)) * self.u(0.2, 1.0)
+            f = self.dec(0.0, 1.3) / T
+            phase, start = self.u(0, 2 * math.pi), self.pick((0.0, self.u(0, 0.5) * T))
+            return (f"Sine(amplitude={_fmt(amp)}, freq_hz={_fmt(f)}, phase={_fmt(phase)}, "
+                    f"offset={_fmt(off)}, start_time={_fmt(0.0 if start_at_zero else start)})")
+        if kind == "Table":
+            n = self.rng.randint(2, 5)
+            ts = sorted({round(self.u(0.0, T), 6) for _ in range(n)} | {0.0})
+            return "Table([" + ", ".join(f"({_fmt(t)}, {_fmt(val())})" for t in ts) + "])"
+        if kind == "Pulse":
+            a, b = val(), val()
+            return (f"Pulse(amplitude={_fmt(b - a)}, width={_fmt(self.u(10, 90))}, period={_fmt(T / self.dec(0.3, 1.3))}, "
+                    f"start_time={_fmt(self.u(0, 0.3) * T)}, offset={_fmt(a)})")
+        # a callable: no breakpoints known, smooth
+        mid, half = (lo + hi) / 2, (hi - lo) / 2
+        form = self.rng.randrange(3)
+        if form == 0:
+            amp = half * self.u(0.2, 1.0)
+            off = mid + self.u(-1, 1) * (half - amp)
+            return (f"lambda t: {_fmt(off)} + {_fmt(amp)} * math.sin({_fmt(2 * math.pi * self.dec(0, 1.3) / T)} * t "
+                    f"+ {_fmt(self.u(0, 6.28))})")
+        if form == 1:
+            a, b = val(), val()
+            return f"lambda t: {_fmt(a)} + {_fmt(b - a)} * (1.0 - math.exp(-t / {_fmt(self.u(0.05, 0.5) * T)}))"
+        a, b = val(), val()
+        return (f"lambda t: {_fmt((a + b) / 2)} + {_fmt((b - a) / 2)} * math.tanh((t - {_fmt(self.u(0.1, 0.8) * T)}) "
+                f"/ {_fmt(self.u(0.02, 0.2) * T)})")
+
+    def normalized(self):
+        """A normalised normal force in [0, 1] (any signal type)."""
+        if self.chance(0.15):
+            return self.pick(("1.0", "0.0"))
+        return self.signal(0.0, 1.0)
+
+    def mu_kwargs(self):
+        if self.chance(0.3):
+            n = self.rng.randint(1, 4)
+            ws = sorted({0.0} | {round(self.dec(-1, 2), 4) for _ in range(n)})
+            return {"mu_table": "[" + ", ".join(f"({_fmt(w)}, {_fmt(self.u(0.05, 0.9))})" for w in ws) + "]"}
+        return {"mu": _fmt(self.u(0.05, 0.9))}
+
+    # -- families ------------------------------------------------------------
+    def link(self, family, domain=None):
+        """A two-flange compliant (or rigid) link from an existing mass to a new one, to the ground,
+        or (compliant only) between two masses of different rigid groups."""
+        domain = domain or ("rotational" if family in ("shaft_rigid", "shaft_elastic") or self.chance(0.7)
+                            else "translational")
+        a = self.anchor(domain)
+        where = self.rng.random()
+        rigid = family == "shaft_rigid"
+        others = [b for b in self.bodies if b.domain == domain and self.find(b.group) != self.find(a.group)]
+        if not rigid and where < 0.15:
+            b, mb = None, None
+        elif not rigid and where < 0.3 and others:
+            b = self.pick(others)
+            mb = b.mass
+        else:
+            b = self.new_mass(domain)
+            mb = b.mass
+        c, omega, red = self.stiffness(a.mass, *(() if mb is None else (mb,)))
+        dom = {} if domain == "rotational" else {"domain": "'translational'"}
+        if family == "spring":
+            var = self.add("spring", "Spring", c=_fmt(c), **dom)
+        elif family == "damper":
+            var = self.add("damper", "Damper", d=_fmt(self.damping(omega, red, allow_zero=False)), **dom)
+        elif family == "spring_damper":
+            var = self.add("sd", "SpringDamper", c=_fmt(c), d=_fmt(self.damping(omega, red)), **dom)
+        elif family == "shaft_rigid":
+            var = self.add("shaft", "Shaft", stiffness="None")
+        elif family == "shaft_elastic":
+            var = self.add("shaft", "Shaft", stiffness=_fmt(c), damping=_fmt(self.damping(omega, red)))
+        elif family == "backlash":
+            var = self.add("bl", "Backlash", c=_fmt(c), b=_fmt(self.pick((0.0, self.dec(-3, -0.5)))), **dom)
+        else:
+            var = self.add("ebl", "ElastoBacklash", c=_fmt(c), d=_fmt(self.damping(omega, red)),
+                           b=_fmt(self.pick((0.0, self.dec(-3, -0.5)))), **dom)
+        ends = [self.flange(a), self.ground(domain) if b is None else self.flange(b)]
+        if self.chance(0.5):
+            ends.reverse()
+        self.connect(f"{var}.flange_a", ends[0])
+        self.connect(f"{var}.flange_b", ends[1])
+        if rigid:
+            self.union(a, b)
+        return a, b
+
+    def gear(self, family):
+        a = self.anchor("rotational")
+        if family in ("ideal_gear", "lossy_gear"):
+            ratio = self.pick((1, -1)) * self.dec(-1, 1)
+            b = self.new_mass("rotational", mass=a.mass * ratio ** -2 * self.dec(-1, 1))
+            if family == "ideal_gear":
+                var = self.add("gear", "IdealGear", ratio=_fmt(ratio))
+            else:
+                var = self.add("lgear", "LossyGear", ratio=_fmt(ratio), loss_table=self.loss_table())
+            ends = [self.flange(a), self.flange(b)]
+            if self.chance(0.5):
+                ends.reverse()
+            self.connect(f"{var}.flange_a", ends[0])
+            self.connect(f"{var}.flange_b", ends[1])
+            if self.chance(0.15):
+                # a moving housing: the support on a third mass
+                s = self.new_mass("rotational")
+                self.connect(f"{var}.support", self.flange(s))
+                self.union(a, b, s)
+            else:
+                self.union(a, b)
+            return
+        if family in ("planetary", "lossy_planetary"):
+            ratio = self.dec(0.1, 0.7)
+            if family == "planetary":
+                var = self.add("planet", "Planetary", ratio=_fmt(ratio))
+            else:
+                var = self.add("lplanet", "LossyPlanetary", ratio=_fmt(ratio), loss_table=self.loss_table())
+            ports = ["sun", "carrier", "ring"]
+            self.rng.shuffle(ports)
+            self.connect(f"{var}.{ports[0]}", self.flange(a))
+            joined = [a]
+            for p in ports[1:]:
+                if p == "ring" and self.chance(0.3):
+                    self.connect(f"{var}.ring", self.ground("rotational"))   # ring held: an ordinary reduction
+                else:
+                    nb = self.new_mass("rotational")
+                    self.connect(f"{var}.{p}", self.flange(nb))
+                    joined.append(nb)
+            self.union(*joined)
+            return
+        ratio = self.pick((1.0, self.dec(0, 0.7)))
+        left, right = None, None
+        if family == "differential":
+            var = self.add("diff", "Differential", ratio=_fmt(ratio))
+            left, right = self.new_mass("rotational"), self.new_mass("rotational")
+            self.connect(f"{var}.left", self.flange(left))
+            self.connect(f"{var}.right", self.flange(right))
+        else:
+            var = self.add("lsd", "LimitedSlipDifferential", ratio=_fmt(ratio),
+                           preload=_fmt(self.tau_scale * self.dec(-1, 0.7) / 0.005),
+                           mu=_fmt(self.u(0.05, 0.3)), cgeo=_fmt(0.05), peak=_fmt(self.u(1.0, 1.5)),
+                           J_side=_fmt(a.mass * self.dec(-2, -0.5)))
+            J_side = float(self.comps[var]["kw"]["J_side"])
+            left = self._body(None, f"{var}.left", "rotational", J_side, None)
+            right = self._body(None, f"{var}.right", "rotational", J_side, None)
+        self.connect(f"{var}.carrier", self.flange(a))
+        self.union(a, left, right)
+
+    def loss_table(self):
+        n = self.rng.randint(1, 3)
+        ws = sorted({0.0} | {round(self.dec(-1, 2), 4) for _ in range(n - 1)})
+        rows = []
+        for w in ws:
+            ideal = self.chance(0.1)
+            e1, e2 = (1.0, 1.0) if ideal else (self.u(0.5, 1.0), self.u(0.5, 1.0))
+            b1, b2 = (0.0, 0.0) if ideal or self.chance(0.3) else (self.tau_scale * self.dec(-3, -0.5),
+                                                                  self.tau_scale * self.dec(-3, -0.5))
+            rows.append(f"[{_fmt(w)}, {_fmt(e1)}, {_fmt(e2)}, {_fmt(b1)}, {_fmt(b2)}]")
+        return "[" + ", ".join(rows) + "]"
+
+    def friction(self, family):
+        if family == "friction_contact":
+            a = self.anchor("translational")
+            fn = self.signal(0.0, 1.0 * self.f_scale)
+            var = self.add("contact", "FrictionContact", fn=fn, peak=_fmt(self.u(1.0, 1.6)), **self.mu_kwargs())
+            other = self.new_mass("translational") if self.chance(0.5) else None
+            ends = [self.flange(a), self.ground("translational") if other is None else self.flange(other)]
+            if self.chance(0.5):
+                ends.reverse()
+            self.connect(f"{var}.flange_a", ends[0])
+            self.connect(f"{var}.flange_b", ends[1])
+            return
+        a = self.anchor("rotational")
+        if family == "bearing_friction":
+            n = self.rng.randint(1, 3)
+            ws = sorted({0.0} | {round(self.dec(-1, 2), 4) for _ in range(n - 1)})
+            tab = "[" + ", ".join(f"({_fmt(w)}, {_fmt(self.tau_scale * self.dec(-2, 0))})" for w in ws) + "]"
+            var = self.add("bearing", "BearingFriction", tau_table=tab, peak=_fmt(self.u(1.0, 1.5)))
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        # capacity mu * cgeo * fn_max near the torque scale
+        mu = self.mu_kwargs()
+        cgeo = self.dec(-1.5, 0)
+        fn_max = self.tau_scale * self.dec(-1, 0.7) / (0.5 * cgeo)
+        kw = dict(mu, peak=_fmt(self.u(1.0, 1.6)), cgeo=_fmt(cgeo), fn_max=_fmt(fn_max),
+                  f_normalized=self.normalized())
+        if family == "brake":
+            var = self.add("brake", "Brake", **kw)
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        cls, prefix = ("Clutch", "clutch") if family == "clutch" else ("OneWayClutch", "owc")
+        var = self.add(prefix, cls, **kw)
+        others = [b for b in self.bodies if b.domain == "rotational" and self.find(b.group) != self.find(a.group)]
+        b = self.pick(others) if others and family == "clutch" and self.chance(0.3) else self.new_mass("rotational")
+        if family == "one_way_clutch":
+            # a freewheel must start with w_rel = w_b - w_a >= 0: the new side b starts fast
+            self.connect(f"{var}.flange_a", self.flange(a))
+            self.connect(f"{var}.flange_b", self.flange(b))
+            self.high_start[self.find(b.group)] = b
+            return
+        ends = [self.flange(a), self.flange(b)]
+        if self.chance(0.5):
+            ends.reverse()
+        self.connect(f"{var}.flange_a", ends[0])
+        self.connect(f"{var}.flange_b", ends[1])
+
+    def vehicle_body(self):
+        """A translational mass for wheels to carry (an existing one or a new vehicle)."""
+        cands = [b for b in self.bodies if b.domain == "translational" and b.start == "mass"]
+        if cands and self.chance(0.6):
+            return self.pick(cands)
+        return self.new_mass("translational", mass=self.dec(1.5, 3.3))
+
+    def wheel(self, family):
+        a = self.anchor("rotational")
+        body = self.vehicle_body()
+        radius = self.dec(-1, 0)
+        J = self.dec(-1.5, 0.5)
+        if family == "wheel":
+            fn = self.signal(0.3 * body.mass * 9.81, 1.0 * body.mass * 9.81,
+                             kinds=("Constant", "Sine", "Table", "callable", "Step"))
+            var = self.add("wheel", "Wheel", radius=_fmt(radius), J=_fmt(J), m_axle=_fmt(self.dec(0, 1.7)),
+                           c_tyre=_fmt(self.dec(4, 5.5)), d_tyre=_fmt(self.dec(1.5, 3)), mu=_fmt(self.u(0.3, 1.1)),
+                           peak=_fmt(self.u(1.0, 1.3)), fn=fn)
+            kw = self.comps[var]["kw"]
+            m_axle = float(kw["m_axle"])
+            self.omega_max = max(self.omega_max, math.sqrt(float(kw["c_tyre"]) / 0.5))
+            hub = self._body(var, f"{var}.hub", "rotational", J, "wheel")
+            axle = self._body(var, f"{var}.axle", "translational", m_axle, "wheel")
+            self.union(hub, axle)
+            # the axle carries the vehicle: joined directly (one node) or through a suspension link
+            if self.chance(0.6):
+                self.connect(f"{var}.axle", self.flange(body))
+                self.union(axle, body)
+            else:
+                c, omega, red = self.stiffness(m_axle, body.mass)
+                sd = self.add("susp", "SpringDamper", c=_fmt(c), d=_fmt(self.damping(omega, red)),
+                              domain="'translational'")
+                self.connect(f"{sd}.flange_a", f"{var}.axle")
+                self.connect(f"{sd}.flange_b", self.flange(body))
+        else:
+            fn = body.mass * 9.81 * self.u(0.3, 1.0)
+            var = self.add("mfw", "MagicFormulaWheel", radius=_fmt(radius), J=_fmt(J), fn=_fmt(fn),
+                           D=_fmt(self.u(0.3, 1.1)))
+            hub = self._body(var, f"{var}.hub", "rotational", J, "mf_wheel")
+            # the slip law is stiff near standstill: dF/dv = fn D C B / v_eps (defaults C 1.9, B 10,
+            # v_eps 0.5 m/s) acting on the wheel inertia seen at the tread, J / r^2: a rate [1/s]
+            self.omega_max = max(self.omega_max, radius ** 2 * fn * float(_fmt(self.comps[var]["kw"]["D"])) * 38.0 / J)
+            self.connect(f"{var}.axle", self.flange(body))
+        # the drive: a shaft from an existing rotational mass to the hub
+        if self.chance(0.5):
+            self.union(a, hub)
+            sh = self.add("shaft", "Shaft", stiffness="None")
+        else:
+            c, omega, red = self.stiffness(a.mass, J)
+            sh = self.add("shaft", "Shaft", stiffness=_fmt(c), damping=_fmt(self.damping(omega, red)))
+        self.connect(f"{sh}.flange_a", self.flange(a))
+        self.connect(f"{sh}.flange_b", hub.flange)
+
+    def road_load(self):
+        body = self.anchor("translational")
+        var = self.add("road", "RoadLoad", f_roll=_fmt(self.f_scale * self.dec(-2, -0.5)),
+                       c_drag=_fmt(self.dec(-1.5, 0.3)), grade=_fmt(self.pick((0.0, self.u(-0.15, 0.15)))),
+                       m=_fmt(body.mass), v_eps=_fmt(self.dec(-2, -0.5)))
+        self.connect(f"{var}.flange", self.flange(body))
+
+    def source(self, family):
+        if family == "torque":
+            a = self.anchor("rotational")
+            amp = self.tau_scale * self.dec(-0.5, 0.5)
+            var = self.add("drive", "Torque", tau=self.signal(-amp, amp))
+            self.connect(f"{var}.flange", self.flange(a))
+            if self.chance(0.15):
+                others = [b for b in self.bodies if b.domain == "rotational" and b is not a]
+                if others:
+                    self.connect(f"{var}.support", self.flange(self.pick(others)))     # reaction on a mass
+            return
+        if family == "force":
+            a = self.anchor("translational")
+            amp = self.f_scale * self.dec(-0.5, 0.5)
+            var = self.add("push", "Force", f=self.signal(-amp, amp))
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        if family == "engine":
+            a = self.anchor("rotational")
+            n = self.rng.randint(2, 4)
+            ws = sorted({round(self.dec(0, 2.5), 3) for _ in range(n)} | {0.0})
+            tab = "[" + ", ".join(f"({_fmt(w)}, {_fmt(self.tau_scale * self.u(0.2, 1.0))})" for w in ws) + "]"
+            var = self.add("engine", "Engine", torque_map=tab, throttle=self.signal(0.0, 1.0))
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        # prescribed motion: one per rigid group, on a group without start values (assigned later)
+        domain = "rotational" if self.chance(0.7) else "translational"
+        cands = [b for b in self.bodies if b.domain == domain and self.find(b.group) not in self.driven
+                 and self.find(b.group) not in self.high_start]
+        a = self.pick(cands) if cands else self.new_mass(domain)
+        amp = self.dec(-1, 1.3)
+        # a reference is smooth when the motion it prescribes has no jump in speed: a speed reference
+        # without jumps, a position reference without jumps or corners (a Sine that starts later than
+        # t = 0 jumps, or has a corner, where it starts)
+        if family == "speed":
+            rough = not self.chance(0.9)
+            smooth_kinds, rough_kinds = ("Constant", "Sine", "callable", "Ramp", "Table"), ("Step", "Pulse")
+            cls, param = ("Speed", "w_ref") if domain == "rotational" else ("LinearSpeed", "v_ref")
+        else:
+            rough = not self.chance(0.85)
+            smooth_kinds, rough_kinds = ("Constant", "Sine", "callable"), ("Ramp", "Table", "Step", "Pulse")
+            cls, param = ("Position", "phi_ref") if domain == "rotational" else ("LinearPosition", "s_ref")
+        if self.references != "any":
+            rough = self.references == "rough"
+        if rough:
+            ref = self.signal(-amp, amp, kinds=rough_kinds)
+        else:
+            ref = self.signal(-amp, amp, kinds=smooth_kinds, start_at_zero=self.references == "smooth")
+        var = self.add("motor" if family == "speed" else "servo", cls, **{param: ref},
+                       **({} if domain == "rotational" else {"domain": "'translational'"}))
+        self.connect(f"{var}.flange", self.flange(a))
+        self.driven.add(self.find(a.group))
+
+    def apply(self, family):
+        self.used.append(family)
+        if family in ("spring", "damper", "spring_damper", "shaft_rigid", "shaft_elastic", "backlash",
+                      "elasto_backlash"):
+            self.link(family)
+        elif family in ("ideal_gear", "lossy_gear", "planetary", "lossy_planetary", "differential",
+                        "limited_slip_differential"):
+            self.gear(family)
+        elif family in ("clutch", "brake", "one_way_clutch", "bearing_friction", "friction_contact"):
+            self.friction(family)
+        elif family in ("wheel", "magic_formula_wheel"):
+            self.wheel(family)
+        elif family == "road_load":
+            self.road_load()
+        else:
+            self.source(family)
+
+    # -- start values and output ----------------------------------------------
+    def starts(self):
+        groups: dict[int, list[_Body]] = {}
+        for b in self.bodies:
+            groups.setdefault(self.find(b.group), []).append(b)
+        for g, members in groups.items():
+            if g in self.driven:
+                continue
+            startable = [b for b in members if b.start is not None]
+            if not startable:
+                continue
+            fast = self.high_start.get(g)
+            if fast is not None and fast.start is not None:
+                b, w0 = fast, self.dec(1.5, 2.3)
+            elif self.chance(0.6):
+                b, w0 = self.pick(startable), self.pick((0.0, 1.0, -1.0)) * self.dec(-1, 1.3)
+            else:
+                continue
+            phi0 = self.pick((None, self.pick((1, -1)) * self.dec(-3, 0)))
+            kw = self.comps[b.var]["kw"]
+            if b.start == "inertia":
+                kw["w0"] = _fmt(w0)
+                if phi0 is not None:
+                    kw["phi0"] = _fmt(phi0)
+            elif b.start == "mass":
+                kw["v0"] = _fmt(w0)
+                if phi0 is not None:
+                    kw["s0"] = _fmt(phi0)
+            elif b.start == "wheel":
+                r = float(kw["radius"])
+                kw["w0"] = _fmt(w0)
+                kw["v0"] = _fmt(w0 * r)      # rolling without slip at the start
+            elif b.start == "mf_wheel":
+                kw["w0"] = _fmt(w0)
+
+    def lines(self):
+        out = []
+        for var in self.order:
+            c = self.comps[var]
+            args = "".join(f", {k}={v}" for k, v in c["kw"].items())
+            out.append(f"{var} = m.add({c['cls']}({var!r}{args}))")
+        for a, b in self.conns:
+            out.append(f"m.connect({a}, {b})")
+        return out
+
+
+def generate(rng, families=None, n_steps=None, require=(), name="fuzz", references="any") -> ModelSpec:
+    """A random regular drivetrain drawn with ``rng`` (a ``random.Random`` or hypothesis' ``st.randoms()``).
+
+    ``families``: draw only from these (keys of ``FAMILIES``; default all); ``require``: families that
+    appear at least once; ``n_steps``: number of components attached (default 2..7, at least
+    ``len(require)``). A source is added when the plan has none. ``references`` of the prescribed-motion
+    sources: ``"any"`` (mostly smooth; a jump of speed in 10 to 15 %), ``"smooth"`` (no jump of speed),
+    ``"rough"`` (steps and pulses of speed, corners and jumps of position).
+    """
+    if references not in ("any", "smooth", "rough"):
+        raise ValueError(f"references must be 'any', 'smooth' or 'rough', got {references!r}")
+    pool = dict(FAMILIES) if families is None else {f: FAMILIES[f] for f in families if f in FAMILIES}
+    unknown = (set(families or ()) | set(require)) - set(FAMILIES)
+    if unknown:
+        raise ValueError(f"unknown families {sorted(unknown)}; choose from {sorted(FAMILIES)}")
+    g = _Gen(rng, name, references)
+    n = max(n_steps if n_steps is not None else rng.randint(2, 7), len(require))
+    names, weights = list(pool), [pool[f] for f in pool]
+    plan = list(require)
+    while len(plan) < n:
+        plan.append(rng.choices(names, weights)[0])
+    if require:
+        rng.shuffle(plan)
+    first = "translational" if (plan[0] in TRANSLATIONAL_FAMILIES or plan[0] in ("force",)) else "rotational"
+    g.new_mass(first)
+    for fam in plan:
+        g.apply(fam)
+    if not any(f in SOURCE_FAMILIES for f in plan):
+        # something must drive the model (a start speed alone is often all at rest)
+        g.apply("torque" if any(b.domain == "rotational" for b in g.bodies) else "force")
+    g.starts()
+    t_end = float(_fmt(g.t_end))
+    # output grid fine enough for the energy books on the fastest designed mode (omega dt <= 0.1)
+    dt = min(t_end / 400.0, 0.1 / g.omega_max)
+    n_out = max(400, min(20000, int(math.ceil(t_end / dt))))
+    return ModelSpec(name=name, lines=g.lines(), t_end=t_end, dt_out=t_end / n_out, families=sorted(set(g.used)))
+
+
+def generate_seed(seed: int, families=None, n_steps=None, require=()) -> ModelSpec:
+    """The model of campaign seed ``seed`` (``random.Random(seed)``)."""
+    spec = generate(random.Random(seed), families=families, n_steps=n_steps, require=require, name=f"fuzz_{seed}")
+    spec.seed = seed
+    return spec
+
+
+# ============================================================================ checks
+
+#: claimed global error of an adaptive run at ``rtol``, relative to the range of each kind of signal,
+#: as a multiple of rtol (the hard-case answer tolerance: 1e-4 at rtol 1e-8), until runs carry their
+#: own estimate (the accuracy contract); plus an absolute part of ``ABS_CLAIM`` times the run's atol
+CLAIM_PER_RTOL = 1e4
+ABS_CLAIM = 100.0
+#: the energy checks of a run hold to its claimed relative error (``claimed_error``) times these factors
+#: of the power scale (pointwise balance, loss signs) and of the energy scale (books; plus ``QUAD_SAFETY``
+#: times the quadrature's own error estimate, trapezoid on the output grid against every other point).
+#: The pointwise balance gets 100: IDA's outputs are its interpolating polynomial and its derivative
+#: between steps, whose residual is not the converged one (measured up to 7e4 x rtol of the power scale at
+#: rtol 1e-10; the ODE-form solvers, whose accelerations come from the equations, balance to round-off)
+POWER_FACTOR = 100.0
+LOSS_FACTOR = 1.0
+ENERGY_FACTOR = 1.0
+QUAD_SAFETY = 4.0
+
+#: a disagreement beyond this many times the claims is a wrong answer, not an accuracy shortfall
+GROSS = 100.0
+
+#: (label, solver, options); ``tight`` runs are the references
+RUNS = (
+    ("ida", "ida", {"rtol": 1e-8}),
+    ("dop853", "scipy:DOP853", {"rtol": 1e-8}),
+    ("ida_ref", "ida", {"rtol": 1e-10}),
+    ("dop853_ref", "scipy:DOP853", {"rtol": 1e-10, "max_steps": 400_000}),
+    ("expm", "expm", {"tol": 1e-4}),          # only for models linear between friction events
+)
+#: work budget of one run: evaluations of the model equations (residual / right-hand side)
+DEFAULT_MAX_CALLS = 600_000
+
+LOSS_CLASSES = ("Clutch", "Brake", "OneWayClutch", "BearingFriction", "FrictionContact", "LossyGear",
+                "LossyPlanetary", "Damper", "RoadLoad", "MagicFormulaTyre")
+LOSSLESS_CLASSES = ("Spring", "IdealGear", "Planetary", "Differential", "Rolling", "Backlash")
+
+
+@dataclass
+class Finding:
+    kind: str
+    detail: str
+    run: str = ""
+    where: str = ""        # component (class 'name') most involved, for grouping
+
+
+@dataclass
+class RunOutcome:
+    label: str
+    solver: str
+    options: dict
+    status: str                    # ok | refused | crash | budget | skipped
+    error: str = ""                # class name of the error
+    message: str = ""
+    wall_s: float = 0.0
+    claim_rel: float = math.nan
+    claim_abs: float = 0.0
+    metrics: dict = field(default_factory=dict)   # the energy checks' measured values (energy_checks)
+
+
+@dataclass
+class Verdict:
+    name: str
+    seed: int | None
+    status: str                    # pass | refused | finding
+    families: list
+    runs: list = field(default_factory=list)
+    findings: list = field(default_factory=list)
+    refusals: list = field(default_factory=list)      # (run label, error class, message)
+    wall_s: float = 0.0
+    n_components: int = 0
+    pairs: dict = field(default_factory=dict)         # run pair -> (difference / allowance on both scales)
+
+    def to_dict(self):
+        return asdict(self)
+
+
+def _first_line(exc, limit=400):
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def claimed_error(label, solver, options, res) -> tuple[float, float]:
+    """``(relative, absolute)`` bound a run claims on its global error of positions and speeds.
+
+    Relative to the range of the signals of one kind (as ``regmech.solvers.richardson`` measures).
+    Fixed-step runs with an estimate claim ``max(tol, estimate)``; adaptive runs ``CLAIM_PER_RTOL * rtol``
+    and ``ABS_CLAIM * atol`` (atol defaults to rtol/100). This is the one place to switch to the
+    accuracy contract's ``res.stats.error_estimate`` once every solver reports one.
+    """
+    est = getattr(res.stats, "error_estimate", None)
+    if "tol" in options and est is not None:
+        return max(float(options["tol"]), float(est)), 0.0
+    rtol = float(options.get("rtol", 1e-6))
+    atol = float(options.get("atol", rtol * 1e-2))
+    return CLAIM_PER_RTOL * rtol, ABS_CLAIM * atol
+
+
+def _bodies(model):
+    """(name, mass, position name, speed name, acceleration name) of every mass in the model."""
+    out = []
+    for name, comp in model.components.items():
+        if getattr(comp, "role", "") == "body":
+            p, w, a, _ = comp.var_names()
+            out.append((name, float(comp.mass), f"{name}.{p}", f"{name}.{w}", f"{name}.{a}"))
+    return out
+
+
+def _devices(model):
+    return [(name, comp) for name, comp in model.components.items() if getattr(comp, "role", "") == "device"]
+
+
+def _segments(t):
+    """Index ranges of the smooth pieces of an output grid (an event instant appears twice)."""
+    cuts = np.flatnonzero(np.diff(t) <= 0) + 1
+    bounds = [0, *cuts.tolist(), len(t)]
+    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b - a >= 1]
+
+
+def integrate(t, y):
+    """Cumulative trapezoid integral of ``y(t)`` on an output grid and the quadrature's own error estimate.
+
+    Returns ``(I, err)``: ``I`` at every row, and ``err`` an estimate of ``max_t |I(t) - exact|`` by
+    Richardson: on each smooth piece (an event instant appears twice in the grid) the cumulative rule
+    at h is compared with the rule on every other point at the shared instants, ``|C_h - C_2h| / 3``,
+    its largest value per piece summed over the pieces (the error at an instant inside a run can
+    exceed the error of the whole, where oscillating errors cancel)."""
+    t = np.asarray(t, float)
+    y = np.asarray(y, float)
+    inc = np.concatenate([[0.0], np.diff(t) * (y[1:] + y[:-1]) / 2])
+    cum = np.cumsum(inc)
+    err = 0.0
+    for a, b in _segments(t):
+        if b - a < 3:
+            continue
+        ts, ys = t[a:b], y[a:b]
+        fine = cum[a:b:2] - cum[a]
+        t2, y2 = ts[::2], ys[::2]
+        coarse = np.concatenate([[0.0], np.cumsum(np.diff(t2) * (y2[1:] + y2[:-1]) / 2)])
+        err += float(np.max(np.abs(fine - coarse))) / 3.0
+    return cum, err
+
+
+def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> list[Finding]:
+    """The power balance, the energy books and the sign of every loss, from the result's own signals.
+
+    ``rel`` is the run's claimed relative error and ``abs_speed`` its absolute part (``claimed_error``);
+    every power tolerance below also admits ``abs_speed`` times the largest device force of the run (a
+    speed error at that level times the force: what a device held at rest shows as power when the whole
+    model barely moves). ``metrics`` (a dict) receives the measured values relative to their scales.
+
+    * Pointwise: ``sum_b m_b v_b a_b + sum_d P_d = 0`` within ``POWER_FACTOR * rel`` of the power scale
+      (``P_d`` = ``<device>.power``, the power the device absorbs; a source absorbs minus its input; the
+      power scale is the largest ``sum |terms|`` over the output instants).
+    * Books: ``K(t) - K(0) + V(t) - V(0) + D(t) = W(t)`` with K the kinetic energy (``.kinetic``), V the
+      stored energy (``.potential`` of the devices that have one), W the work of the sources
+      ``-int P_src`` and D the dissipation ``int P_other - (V(t) - V(0))``; within ``ENERGY_FACTOR * rel``
+      of the energy scale (the largest of ``int sum |P|``, K and |V|) plus ``QUAD_SAFETY`` times the
+      quadrature error estimate (``integrate``).
+    * Loss signs: every friction or loss element absorbs ``P_d >= -LOSS_FACTOR * rel * power scale`` at
+      every output instant; an element with storage and loss has a non-decreasing D_d and an ideal
+      element D_d = 0, both within the books' tolerance (with the element's own quadrature estimate).
+    """
+    metrics = {} if metrics is None else metrics
+    t = res.t
+    findings = []
+    if len(t) < 3:
+        return findings
+    bodies = _bodies(model)
+    kin = np.zeros_like(t)
+    rate = np.zeros_like(t)
+    rate_abs = np.zeros_like(t)
+    for name, mass, _, w, a in bodies:
+        if f"{name}.kinetic" not in res:
+            continue
+        kin = kin + res[f"{name}.kinetic"]
+        term = mass * res[w] * res[a]
+        rate = rate + term
+        rate_abs = rate_abs + np.abs(term)
+    powers = {}
+    for name, dev in _devices(model):
+        if f"{name}.power" in res:
+            powers[name] = (dev, res[f"{name}.power"])
+    total = rate + sum((p for _, p in powers.values()), np.zeros_like(t))
+    p_abs = rate_abs + sum((np.abs(p) for _, p in powers.values()), np.zeros_like(t))
+    # a model with no power anywhere (everything at rest, or only jumps of speed) still has books to close
+    p_scale = float(p_abs.max(initial=0.0)) or 1e-300
+    f_scale = 0.0
+    for name, _ in _devices(model):
+        for sig in (f"{name}.tau", f"{name}.f"):
+            if sig in res:
+                f_scale = max(f_scale, float(np.abs(res[sig]).max(initial=0.0)))
+    p_floor = abs_speed * f_scale
+    k = int(np.argmax(np.abs(total)))
+    metrics["power"] = abs(float(total[k])) / p_scale
+    if abs(total[k]) > POWER_FACTOR * rel * p_scale + p_floor:
+        findings.append(Finding("power-balance", f"sum m v a + sum P = {total[k]:.3g} W at t={t[k]:.6g} "
+                                f"({metrics['power']:.2g} of the power scale {p_scale:.3g} W; tolerance "
+                                f"{POWER_FACTOR * rel:.1g})", run))
+    # energy books
+    src = np.zeros_like(t)
+    other = np.zeros_like(t)
+    stored = np.zeros_like(t)
+    per_dev = {}
+    for name, (dev, p) in powers.items():
+        if dev.is_source:
+            src = src + p
+            continue
+        other = other + p
+        pot = res[f"{name}.potential"] if f"{name}.potential" in res else None
+        if pot is not None:
+            stored = stored + pot
+        cum, qe = integrate(t, p)
+        per_dev[name] = (dev, cum - (0.0 if pot is None else pot - pot[0]), qe, p)
+    work, qe_w = integrate(t, -src)
+    absorbed, qe_o = integrate(t, other)
+    dissipated = absorbed - (stored - stored[0])
+    books = (kin - kin[0]) + (stored - stored[0]) + dissipated - work
+    e_scale = max(float(integrate(t, p_abs)[0][-1]), float(kin.max()), float(np.abs(stored).max(initial=0.0)))
+    if e_scale == 0.0:
+        return findings
+    e_floor = p_floor * float(t[-1] - t[0])
+    tol_e = ENERGY_FACTOR * rel * e_scale + QUAD_SAFETY * (qe_w + qe_o) + e_floor
+    k = int(np.argmax(np.abs(books)))
+    metrics["books"] = abs(float(books[k])) / e_scale
+    metrics["quadrature"] = (qe_w + qe_o) / e_scale
+    if abs(books[k]) > tol_e:
+        findings.append(Finding("energy-books", f"kinetic + stored + dissipated - work in = {books[k]:.3g} J at "
+                                f"t={t[k]:.6g} (work in {work[-1]:.4g} J, dissipated {dissipated[-1]:.4g} J; "
+                                f"energy scale {e_scale:.3g} J, tolerance {tol_e:.3g} J of which quadrature "
+                                f"{QUAD_SAFETY * (qe_w + qe_o):.3g} J)", run))
+    worst_loss = 0.0
+    for name, (dev, diss, qe, p) in per_dev.items():
+        where = f"{type(dev).__name__} '{name}'"
+        kind = _loss_kind(dev)
+        tol_d = ENERGY_FACTOR * rel * e_scale + QUAD_SAFETY * qe + e_floor
+        if kind == "loss":
+            j = int(np.argmin(p))
+            worst_loss = min(worst_loss, float(p[j]) / p_scale)
+            if p[j] < -LOSS_FACTOR * rel * p_scale - p_floor:
+                findings.append(Finding("loss-supplies-power", f"{where} absorbs {p[j]:.3g} W at t={t[j]:.6g} (it "
+                                        f"can only dissipate; {p[j] / p_scale:.2g} of the power scale "
+                                        f"{p_scale:.3g} W)", run, where))
+        elif kind == "storing-loss":
+            fall = np.maximum.accumulate(diss) - diss
+            j = int(np.argmax(fall))
+            if fall[j] > tol_d:
+                findings.append(Finding("loss-supplies-power", f"{where}: its accumulated dissipation falls by "
+                                        f"{fall[j]:.3g} J up to t={t[j]:.6g} (tolerance {tol_d:.3g} J)", run, where))
+        elif kind == "lossless":
+            j = int(np.argmax(np.abs(diss)))
+            if abs(diss[j]) > tol_d:
+                findings.append(Finding("lossless-dissipates", f"{where} (ideal) has absorbed {diss[j]:.3g} J net of "
+                                        f"its stored energy at t={t[j]:.6g} (tolerance {tol_d:.3g} J)", run, where))
+    metrics["loss"] = worst_loss
+    return findings
+
+
+def _loss_kind(dev):
+    names = [k.__name__ for k in type(dev).__mro__]
+    cls = type(dev).__name__
+    if cls == "Shaft":
+        if dev.stiffness is None:
+            return "lossless"
+        return "storing-loss" if dev.damping > 0 else "lossless"
+    if cls in ("SpringDamper", "ElastoBacklash"):
+        return "storing-loss"
+    if cls == "RoadLoad":
+        return "storing-loss"      # the grade force stores height energy
+    if any(n in LOSS_CLASSES for n in names):
+        return "loss"
+    if any(n in LOSSLESS_CLASSES for n in names):
+        return "lossless"
+    return "other"
+
+
+def finite_check(res, run="") -> list[Finding]:
+    for name in res.names:
+        y = res[name]
+        bad = ~np.isfinite(y)
+        if bad.any():
+            k = int(np.argmax(bad))
+            return [Finding("nonfinite", f"{name} is {y[k]} at t={res.t[k]:.6g} ({int(bad.sum())} rows)", run,
+                            name.split(".")[0])]
+    return []
+
+
+def motion_signals(model):
+    """Names of the positions and speeds of every mass, by kind (``phi``, ``w``, ``s``, ``v``)."""
+    kinds: dict[str, list[str]] = {}
+    for _, _, p, w, _ in _bodies(model):
+        kinds.setdefault(p.rsplit(".", 1)[1], []).append(p)
+        kinds.setdefault(w.rsplit(".", 1)[1], []).append(w)
+    return kinds
+
+
+def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
+    """Every pair of runs that returned must agree within the sum of their claims (``claimed_error``).
+
+    The difference of two runs on the common output grid is measured per kind of signal (angles,
+    speeds, positions, linear speeds of the masses) against two scales taken from the tightest run:
+
+    * ``disagreement``: beyond ``(claim_i + claim_j) * max(range, largest |value|) + abs_i + abs_j``,
+      what tolerance-proportional step control can promise at all; ``wrong-answer`` when beyond
+      ``GROSS`` times that (one of the answers is plainly wrong, not merely less accurate than claimed);
+    * ``range-accuracy``: within that but beyond the same bound on the *range* of the kind alone (the
+      measure of the accuracy contract and of ``richardson``): a signal that varies little about a large
+      value is less accurate than its variation needs.
+
+    ``pairs`` (a dict) receives per pair the worst difference over its allowance on either scale.
+    """
+    pairs = {} if pairs is None else pairs
+    from .metrics import sample
+    from ..solvers.common import output_grid
+    ok = [o for o in outcomes if o.status == "ok"]
+    if len(ok) < 2:
+        return []
+    grid = output_grid(0.0, spec.t_end, spec.dt_out)
+    kinds = motion_signals(model)
+    tight = min(ok, key=lambda o: o.claim_rel)
+    sampled = {o.label: {n: sample(results[o.label].t, results[o.label][n], grid) for ns in kinds.values()
+                         for n in ns} for o in ok}
+    ranges, mags = {}, {}
+    for kind, names in kinds.items():
+        ranges[kind] = max(float(np.ptp(sampled[tight.label][n])) for n in names)
+        mags[kind] = max(ranges[kind], max(float(np.abs(sampled[tight.label][n]).max()) for n in names))
+    findings = []
+    for i, a in enumerate(ok):
+        for b in ok[i + 1:]:
+            worst = {"range": (0.0, ""), "mag": (0.0, "")}
+            for kind, names in kinds.items():
+                for scale_kind, scale in (("range", ranges[kind]), ("mag", mags[kind])):
+                    allowed = (a.claim_rel + b.claim_rel) * scale + a.claim_abs + b.claim_abs
+                    if allowed <= 0:
+                        continue
+                    for n in names:
+                        d = np.abs(sampled[a.label][n] - sampled[b.label][n])
+                        j = int(np.argmax(d))
+                        ratio = float(d[j]) / allowed
+                        if ratio > worst[scale_kind][0]:
+                            info = (f"{n}: {a.label} and {b.label} differ by {d[j]:.3g} at t={grid[j]:.6g}, "
+                                    f"{d[j] / max(ranges[kind], 1e-300):.3g} of the {kind} range {ranges[kind]:.3g} "
+                                    f"({d[j] / max(mags[kind], 1e-300):.3g} of max(range, |{kind}|) = {mags[kind]:.3g}); "
+                                    f"they claim {a.claim_rel:.0e} and {b.claim_rel:.0e} (+ {a.claim_abs + b.claim_abs:.0e})")
+                            worst[scale_kind] = (ratio, info)
+            pairs[f"{a.label}/{b.label}"] = (worst["mag"][0], worst["range"][0])
+            if worst["mag"][0] > 1.0:
+                info = worst["mag"][1]
+                kind = "wrong-answer" if worst["mag"][0] > GROSS else "disagreement"
+                findings.append(Finding(kind, info, f"{a.label}/{b.label}", info.split(":")[0]))
+            elif worst["range"][0] > 1.0:
+                info = worst["range"][1]
+                findings.append(Finding("range-accuracy", info, f"{a.label}/{b.label}", info.split(":")[0]))
+    return findings
+
+
+def _is_linear(model, t_end):
+    from ..solvers.expm import nonlinear_components
+    try:
+        return not nonlinear_components(model.compile(), 0.0, float(t_end))
+    except Exception:      # noqa: BLE001 - the runs themselves report what compile() raises
+        return False
+
+
+def evaluate(spec: ModelSpec, runs=RUNS, max_calls=DEFAULT_MAX_CALLS, time_limit_s=None) -> Verdict:
+    """Build, run and check one generated model (see the module docstring for the verdicts)."""
+    from ..errors import RegmechError, RegularityError
+    from .guard import RunTimeout, WorkBudgetExceeded, time_limit, work_budget
+    import warnings
+    t0 = time.perf_counter()
+    v = Verdict(spec.name, spec.seed, "pass", list(spec.families))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            model = spec.build()
+            model.check(warn=False)
+    except RegularityError as exc:
+        v.findings.append(Finding("generator", f"RegularityError: {_first_line(exc)}"))
+    except Exception as exc:      # noqa: BLE001 - the generator must build only valid models
+        v.findings.append(Finding("generator", f"{type(exc).__name__}: {_first_line(exc)}"))
+    if v.findings:
+        v.status = "finding"
+        v.wall_s = time.perf_counter() - t0
+        return v
+    v.n_components = len(model.components)
+    spec.linear = _is_linear(model, spec.t_end)
+    results = {}
+    for label, solver, options in runs:
+        o = RunOutcome(label, solver, dict(options), "ok")
+        if solver == "expm":
+            if not spec.linear:
+                o.status = "skipped"
+                v.runs.append(o)
+                continue
+            o.options.setdefault("h", spec.dt_out)
+        ts = time.perf_counter()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                with time_limit(time_limit_s), work_budget(model, max_calls):
+                    res = model.simulate(spec.t_end, dt_out=spec.dt_out, solver=solver, **o.options)
+            results[label] = res
+            o.claim_rel, o.claim_abs = claimed_error(label, solver, o.options, res)
+        except (RunTimeout, WorkBudgetExceeded) as exc:
+            o.status, o.error, o.message = "budget", type(exc).__name__, _first_line(exc)
+            v.findings.append(Finding("budget", f"{type(exc).__name__}: {_first_line(exc)}", label))
+        except RegmechError as exc:
+            o.status, o.error, o.message = "refused", type(exc).__name__, _first_line(exc)
+            v.refusals.append((label, o.error, o.message))
+        except Exception as exc:   # noqa: BLE001 - that is the finding
+            o.status, o.error, o.message = "crash", type(exc).__name__, _first_line(exc)
+            tb = traceback.extract_tb(exc.__traceback__)
+            at = f" (at {tb[-1].filename.rsplit('/', 2)[-1]}:{tb[-1].lineno} {tb[-1].name})" if tb else ""
+            v.findings.append(Finding("crash", f"{type(exc).__name__} (not a regmech error): {o.message}{at}", label))
+        o.wall_s = time.perf_counter() - ts
+        v.runs.append(o)
+        if o.status == "ok":
+            try:
+                bad = finite_check(res, label)
+                v.findings += bad
+                if not bad:
+                    v.findings += energy_checks(res, model, label, rel=o.claim_rel,
+                                                abs_speed=o.claim_abs, metrics=o.metrics)
+            except Exception as exc:     # noqa: BLE001 - a result whose signals cannot be read
+                v.findings.append(Finding("crash", f"reading the result: {type(exc).__name__}: {_first_line(exc)}",
+                                          label))
+    try:
+        v.findings += agreement([o for o in v.runs if o.status == "ok"], results, model, spec, v.pairs)
+    except Exception as exc:        # noqa: BLE001
+        v.findings.append(Finding("crash", f"comparing the runs: {type(exc).__name__}: {_first_line(exc)}"))
+    v.status = "finding" if v.findings else ("refused" if v.refusals else "pass")
+    v.wall_s = time.perf_counter() - t0
+    return v
+
+
+__all__ = ["FAMILIES", "SIGNALS", "ModelSpec", "generate", "generate_seed", "evaluate", "Verdict", "Finding",
+           "RunOutcome", "RUNS", "claimed_error", "energy_checks", "finite_check", "agreement", "integrate"]

@@ -1,0 +1,167 @@
+"""The fuzz generator builds only regular models, and each check of ``regmech.bench.fuzz`` can fail:
+a tampered power signal, a NaN, a loss element that supplies power, two answers further apart than
+they claim, a foreign exception and a run over its budget are each reported with their kind."""
+
+import math
+import random
+import warnings
+
+import numpy as np
+import pytest
+
+import regmech as rm
+from regmech.bench import fuzz
+from regmech.bench.fuzz import (FAMILIES, ModelSpec, agreement, energy_checks, evaluate, finite_check, generate,
+                                generate_seed, integrate)
+
+
+def test_generator_builds_regular_models_of_every_family():
+    seen = set()
+    for seed in range(120):
+        spec = generate_seed(seed)
+        seen |= set(spec.families)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            m = spec.build()
+            m.check(warn=False)          # a RegularityError here is a generator bug
+    for k, fam in enumerate(FAMILIES):   # and each family on its own
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            generate_seed(1000 + k, require=[fam], n_steps=2).build().check(warn=False)
+    assert seen == set(FAMILIES)
+
+
+def test_generator_is_deterministic_and_its_script_reproduces_the_model():
+    a, b = generate_seed(7), generate_seed(7)
+    assert a.source() == b.source() and a.t_end == b.t_end and a.dt_out == b.dt_out
+    assert generate_seed(8).source() != a.source()
+    ns = {}
+    exec(a.script("ida", rtol=1e-8), ns)          # the standalone reproducer: the model, then one run
+    assert sorted(ns["m"].components) == sorted(a.build().components)
+    assert ns["res"].stats.solver == "ida" and ns["res"].t[-1] == pytest.approx(a.t_end)
+
+
+def test_generator_draws_every_signal_type():
+    text = "\n".join(generate_seed(s).source() for s in range(150))
+    for kind in ("Constant(", "Step(", "Ramp(", "Sine(", "Table(", "Pulse(", "lambda t:"):
+        assert kind in text, kind
+
+
+def test_integrate_estimates_its_own_error():
+    # an oscillating integrand: the largest cumulative error lies inside the run, not at its end
+    t = np.linspace(0.0, 2 * np.pi, 61)
+    cum, err = integrate(t, np.cos(5 * t))
+    exact = np.sin(5 * t) / 5
+    true = float(np.max(np.abs(cum - exact)))
+    assert 0.5 * true < err < 3 * true
+    # an event instant (a repeated time) splits the pieces; a jump in the integrand costs nothing
+    t2 = np.array([0.0, 0.5, 1.0, 1.0, 1.5, 2.0])
+    y2 = np.array([1.0, 1.0, 1.0, 3.0, 3.0, 3.0])
+    cum2, err2 = integrate(t2, y2)
+    assert cum2[-1] == pytest.approx(4.0) and err2 == pytest.approx(0.0, abs=1e-15)
+
+
+def _damped_model():
+    m = rm.Model("damped")
+    drive = m.add(rm.components.Torque("drive", tau=rm.signals.Sine(amplitude=3.0, freq_hz=2.0)))
+    J = m.add(rm.components.Inertia("J", J=0.5, w0=1.0))
+    d = m.add(rm.components.Damper("damper", d=0.8))
+    c = m.add(rm.components.Spring("spring", c=40.0))
+    fixed = m.add(rm.components.Fixed("fixed"))
+    m.connect(drive.flange, J.flange_a)
+    m.connect(J.flange_b, d.flange_a)
+    m.connect(d.flange_b, fixed.flange)
+    m.connect(J.flange_b, c.flange_a)
+    m.connect(c.flange_b, fixed.flange)
+    return m
+
+
+class _Tampered:
+    """A result whose named signals are replaced (the checks read only t, names and signals)."""
+
+    def __init__(self, res, **over):
+        self._res, self._over, self.t = res, over, res.t
+
+    @property
+    def names(self):
+        return self._res.names
+
+    def __contains__(self, name):
+        return name in self._res
+
+    def __getitem__(self, name):
+        return self._over[name] if name in self._over else self._res[name]
+
+
+def test_energy_checks_pass_a_correct_run_and_catch_tampered_power():
+    m = _damped_model()
+    res = m.simulate(2.0, dt_out=1e-3, rtol=1e-8)
+    metrics = {}
+    assert energy_checks(res, m, "ida", rel=1e-4, metrics=metrics) == []
+    assert metrics["books"] < 1e-5 and metrics["loss"] >= 0.0
+    # a damper that gives back the power it should absorb: the books and the loss sign both fail
+    bad = _Tampered(res, **{"damper.power": -res["damper.power"]})
+    kinds = {f.kind for f in energy_checks(bad, m, "ida", rel=1e-4)}
+    assert {"power-balance", "energy-books", "loss-supplies-power"} <= kinds
+    # a spring whose stored energy is off by 10 %: the ideal element seems to dissipate
+    bad = _Tampered(res, **{"spring.potential": 1.1 * res["spring.potential"]})
+    assert "lossless-dissipates" in {f.kind for f in energy_checks(bad, m, "ida", rel=1e-4)}
+
+
+def test_energy_books_catch_a_jump_of_kinetic_energy_without_power():
+    # a model at rest has no power anywhere; a jump of speed in it must still open the books
+    m = rm.Model("rest")
+    J = m.add(rm.components.Inertia("J", J=0.5))
+    d = m.add(rm.components.Damper("d", d=1.0))
+    fixed = m.add(rm.components.Fixed("fixed"))
+    m.connect(J.flange_a, d.flange_a)
+    m.connect(d.flange_b, fixed.flange)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-8)
+    assert energy_checks(res, m, "ida") == []
+    kinetic = np.where(res.t > 0.5, 0.01, 0.0)
+    found = energy_checks(_Tampered(res, **{"J.kinetic": kinetic}), m, "ida")
+    assert [f.kind for f in found] == ["energy-books"]
+
+
+def test_finite_check_names_the_signal():
+    m = _damped_model()
+    res = m.simulate(0.5, dt_out=1e-2, rtol=1e-8)
+    w = res["J.w"].copy()
+    w[7] = math.nan
+    found = finite_check(_Tampered(res, **{"J.w": w}), "ida")
+    assert [f.kind for f in found] == ["nonfinite"] and "J.w" in found[0].detail
+
+
+def test_agreement_flags_answers_further_apart_than_claimed():
+    m = _damped_model()
+    spec = ModelSpec("damped", [], 2.0, 1e-3, [])
+    loose = m.simulate(2.0, dt_out=1e-3, rtol=1e-3)
+    tight = m.simulate(2.0, dt_out=1e-3, rtol=1e-10)
+    outs = [fuzz.RunOutcome("a", "ida", {}, "ok", claim_rel=1e-8), fuzz.RunOutcome("b", "ida", {}, "ok", claim_rel=1e-6)]
+    found = agreement(outs, {"a": loose, "b": tight}, m, spec)
+    assert [f.kind for f in found] == ["wrong-answer"] and "J." in found[0].detail
+    # the same pair with an honest claim for the loose run agrees
+    outs[0].claim_rel = 1e-1
+    assert agreement(outs, {"a": loose, "b": tight}, m, spec) == []
+
+
+def test_evaluate_reports_foreign_exceptions_and_budgets(monkeypatch):
+    spec = generate(random.Random(3), families=["spring_damper", "torque"], n_steps=2)
+    from regmech import solvers
+    solvers._load()
+
+    def broken(model, **kw):
+        raise IndexError("list index out of range")
+
+    monkeypatch.setitem(solvers.SOLVERS, "scipy:RK23", broken)
+    v = evaluate(spec, runs=(("rk23", "scipy:RK23", {"rtol": 1e-6}), ("ida", "ida", {"rtol": 1e-8})), max_calls=50)
+    kinds = {(f.kind, f.run) for f in v.findings}
+    assert ("crash", "rk23") in kinds and ("budget", "ida") in kinds and v.status == "finding"
+
+
+def test_evaluate_passes_a_plain_model_on_every_run():
+    spec = generate(random.Random(11), families=["spring_damper", "torque"], n_steps=2)
+    v = evaluate(spec)
+    assert v.status == "pass", [f.detail for f in v.findings]
+    assert {o.label: o.status for o in v.runs} == {"ida": "ok", "dop853": "ok", "ida_ref": "ok",
+                                                   "dop853_ref": "ok", "expm": "ok"}
