@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..errors import ParameterError, SimulationError
+from ..errors import AccuracyError, ParameterError, SimulationError
 
 
 def check_times(t_start, t_end, dt_out):
@@ -94,12 +94,15 @@ def check_link_spread(c, rtol, solver: str, stiff_check=True):
     dev, w, ratio = link
     spread = ratio ** 2
     if np.finfo(float).eps * spread > 100 * rtol:
-        raise SimulationError(
+        # an accuracy that cannot be had, hence AccuracyError (a SimulationError): the contract of
+        # solvers.accuracy passes it on as the refusal of its accuracy
+        raise AccuracyError(
             f"solver '{solver}' on model '{c.model.name}': the stiffest link, {type(dev).__name__} '{dev.name}' "
             f"(local mode {w / 2 / np.pi:.3g} Hz), is {ratio:.3g} times faster than the softest; "
             f"the round-off of its force (eps * {spread:.3g} = {np.finfo(float).eps * spread:.2g} of the other "
             f"forces) exceeds what rtol={rtol:g} allows, so the answer cannot meet the tolerance. Make the link "
-            f"rigid (Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it; stiff_check=False runs it anyway.")
+            f"rigid (Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it; stiff_check=False runs it anyway.",
+            component=dev.name, estimate=float(np.finfo(float).eps * spread))
 
 
 class StepBudget:

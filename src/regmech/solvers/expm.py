@@ -761,7 +761,7 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
         check_linear(c, float(t_start), float(t_end))
     floor = roundoff_floor(c)
     if tol is not None and floor is not None and floor[0] > tol:
-        raise AccuracyError(_floor_refusal(c, tol, *floor))
+        raise AccuracyError(_floor_refusal(c, tol, *floor), component=floor[1].name, estimate=floor[0], accuracy=tol)
     step = h
     if step is None:
         step = dt_out if dt_out is not None else ((t_end - t_start) / 500.0 if t_end > t_start else 1.0)
