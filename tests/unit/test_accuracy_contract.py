@@ -263,3 +263,24 @@ def test_event_paths_are_compared_device_by_device():
     # a missed lock is another path, and the device is named
     m = match_events(a, [Event(2.0, "c2", 2, 1)])
     assert not m.same_path and m.devices == ["c1"]
+
+
+# ----------------------------------------------------------------------------- regressions found by the contract
+def test_a_long_step_does_not_skip_a_short_lock():
+    """DOP853 at rtol 3e-5 spanned the 40 ms lock of clutch1 (0.79-0.83 s) with one step and ended in the
+    same mode, so the lock was never seen (7 of 9 mode changes, 8e-3 of the range off): the event functions
+    are now sampled at the output instants inside a step too."""
+    from regmech.library import coupled_clutches
+    res = coupled_clutches().simulate(1.5, dt_out=1e-3, solver="scipy:DOP853", rtol=3e-5, atol=3e-7)
+    locks = [e.t for e in res.events if e.component == "clutch1" and e.new_mode == 0]
+    assert len(res.events) == 9 and any(abs(t - 0.7917) < 1e-3 for t in locks)
+
+
+def test_richardson_checks_the_order_it_relies_on():
+    """rk4 on the excavator (backlash contacts) at h = 2 ms: the estimate against 2h (9.5e-7) passed tol 1e-6
+    only through the division by 2^4 - 1, while the error fell like h^2.6 there and was 5.8e-6; the run at
+    4h now shows the order and the run is refused."""
+    from regmech.library import excavator_swing
+    with pytest.raises(rm.AccuracyError) as info:
+        excavator_swing().simulate(2.0, dt_out=2e-3, solver="rk4", h=2e-3, tol=1e-6)
+    assert info.value.suggested_h is not None and info.value.suggested_h < 2e-3
