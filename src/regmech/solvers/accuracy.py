@@ -75,7 +75,7 @@ from collections import defaultdict
 import numpy as np
 
 from ..errors import AccuracyError, ParameterError, SimulationError
-from .common import check_times, output_grid
+from .common import check_times, output_grid, spread_rtol_floor
 from .richardson import StateLabel, kind_scales
 
 #: the accuracy of ``solver="auto"`` when none is given: 1e-3 of the range of the signals of a kind
@@ -278,8 +278,13 @@ def _run_or_explain(fn, model, solver, accuracy, what, **kw):
     """One run of the contract; a failure of a run the contract asked for says so (same error class)."""
     try:
         return fn(model, **kw)
+    except AccuracyError as exc:
+        fields = exc.fields()
+        fields["accuracy"] = accuracy
+        raise AccuracyError(f"accuracy {accuracy:g} with solver '{solver}': the run at rtol={kw.get('rtol', 0):.3g} "
+                            f"refused: {exc}", **fields) from exc
     except SimulationError as exc:
-        if isinstance(exc, AccuracyError) or what is None:
+        if what is None:
             raise
         cls = type(exc)
         try:
@@ -299,6 +304,11 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     if rtol0 is not None and not (isinstance(rtol0, (int, float)) and not isinstance(rtol0, bool) and rtol0 > 0):
         raise ParameterError(f"solver '{solver}': rtol must be a positive number, got {rtol0!r}")
     r = float(rtol0) if rtol0 is not None else accuracy * RTOL_FACTOR.get(solver, 0.01)
+    # the stiffest link's round-off bounds the useful rtol (common.check_link_spread): the pair never goes
+    # below it; an accuracy that would need a tighter one is refused naming the link
+    floor = spread_rtol_floor(model.compile()) if options.get("stiff_check", True) else None
+    r_floor = floor[0] * 1.000001 if floor is not None else 0.0
+    r = max(r, TIGHTEN * r_floor)
     # atol follows rtol: the solvers' default ratio 1e-2, or the ratio the user gave
     atol_ratio = ATOL_RATIO if atol0 is None else np.asarray(atol0, float) / r
     c = model.compile()
@@ -325,9 +335,9 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     while True:
         attempts += 1
         r_tight = r / TIGHTEN
-        if r_tight < RTOL_MIN:
-            raise AccuracyError(_out_of_reach(solver, model, accuracy, history, r_tight), accuracy=accuracy,
-                                **_worst_fields(history))
+        if r_tight < max(RTOL_MIN, r_floor):
+            raise AccuracyError(_out_of_reach(solver, model, accuracy, history, r_tight, floor), accuracy=accuracy,
+                                **_worst_fields(history, floor))
         tight = run(r_tight)
         est = compare_runs(loose, tight, labels, grid)
         ev = match_events(loose.events, tight.events)
@@ -340,6 +350,11 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
             r_new = r_tight
         else:
             r_new = r * SAFETY * accuracy / est.value
+        if r_new / TIGHTEN < r_floor:
+            r_new = TIGHTEN * r_floor        # as tight as the link spread allows: the last pair that can be run
+            if r_new >= r:
+                raise AccuracyError(_out_of_reach(solver, model, accuracy, history, r_new / TIGHTEN, floor),
+                                    accuracy=accuracy, **_worst_fields(history, floor))
         if r_new >= r_tight:
             loose, r = tight, r_tight
         else:
@@ -384,20 +399,27 @@ def _record_events(res, ev: EventMatch):
     res.stats.extra["event_time_error"] = ev.max_error
 
 
-def _worst_fields(history) -> dict:
+def _worst_fields(history, floor=None) -> dict:
     if not history:
-        return {}
+        return {"component": floor[1].name} if floor is not None else {}
     est = history[-1][1]
     return dict(signal=est.signal or None, component=est.component or None, estimate=est.value, t=est.t)
 
 
-def _out_of_reach(solver, model, accuracy, history, r_tight) -> str:
+def _out_of_reach(solver, model, accuracy, history, r_tight, floor=None) -> str:
     tried = "; ".join(f"rtol {r:.2g}: estimate {e.value:.2g}" for r, e, _ in history) or "none"
     worst = ""
     if history and history[-1][1].signal:
         est = history[-1][1]
         worst = (f" The worst signal so far is {est.signal} of '{est.component}' (estimate {est.value:.2g} at "
                  f"t = {est.t:.6g} s).")
+    if floor is not None and r_tight < floor[0] * 1.01:
+        rmin, dev, w, ratio = floor
+        return (f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}' would need rtol below "
+                f"{rmin:.2g}, where the round-off of the stiffest link, {type(dev).__name__} '{dev.name}' "
+                f"(local mode {w / 2 / math.pi:.3g} Hz, {ratio:.3g} times faster than the softest), swamps the "
+                f"answer (pairs so far: {tried}).{worst} Make that link rigid (Shaft(stiffness=None)) or let "
+                f"rm.Scene(band_hz=...) do it, or ask for a looser accuracy.")
     return (f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}' would need rtol below "
             f"{r_tight:.2g}, beyond what double precision resolves (pairs so far: {tried}).{worst} Ask for a "
             f"looser accuracy, or use solver='expm' for a linear model.")

@@ -74,6 +74,20 @@ STEP_CAP_REMEDIES = ("use an implicit solver ('ida', 'scipy:Radau', 'scipy:BDF' 
                      "rtol or shorten the run, or raise max_steps")
 
 
+#: check_link_spread refuses rtol below eps * (w_max / w_min)^2 / SPREAD_RTOL_FACTOR
+SPREAD_RTOL_FACTOR = 100.0
+
+
+def spread_rtol_floor(c):
+    """``(rtol_min, device, omega, ratio)``: the smallest rtol ``check_link_spread`` accepts, with the stiffest
+    link; None without links."""
+    link = c.fastest_link()
+    if link is None:
+        return None
+    dev, w, ratio = link
+    return float(np.finfo(float).eps * ratio ** 2 / SPREAD_RTOL_FACTOR), dev, w, ratio
+
+
 def check_link_spread(c, rtol, solver: str, stiff_check=True):
     """Refuse a tolerance that the link spread makes unreachable in double precision.
 
@@ -93,7 +107,7 @@ def check_link_spread(c, rtol, solver: str, stiff_check=True):
         return
     dev, w, ratio = link
     spread = ratio ** 2
-    if np.finfo(float).eps * spread > 100 * rtol:
+    if np.finfo(float).eps * spread > SPREAD_RTOL_FACTOR * rtol:
         # an accuracy that cannot be had, hence AccuracyError (a SimulationError): the contract of
         # solvers.accuracy passes it on as the refusal of its accuracy
         raise AccuracyError(
