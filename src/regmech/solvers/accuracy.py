@@ -108,8 +108,10 @@ ATOL_SCALE_MIN = 1e-6
 #: 2h it is no bound where the error does not fall steadily with h (events; measured: expm on OneWayClutch
 #: at h = 2 ms, estimate 3.8e-7, true 1.2e-6, while the run at 2h was nearer the truth)
 FIXED_STEP_MARGIN = 3.0
-#: first fixed step of an explicit method: this fraction of its stability limit on the fastest link
-STABLE_FRACTION = 0.5
+#: first fixed step of an explicit method: this fraction of its stability limit on the fastest link (so that
+#: the companion at 2h is still at half the limit: at 0.5, rk4's 2h run sat on the limit and the estimate
+#: on stretched_1e3 was 6 times below the true error)
+STABLE_FRACTION = 0.25
 #: switch instants closer than this (relative to max(1, |t|)) are one change of a device (round-off pairs)
 SAME_INSTANT = 1e-9
 
@@ -257,21 +259,47 @@ def simulate_with_accuracy(model, solver: str, fn, t_start, t_end, dt_out, accur
         raise ParameterError(f"solver '{solver}': give either accuracy= (the contract) or tol= (the bare "
                              f"Richardson check of a fixed-step run), not both; accuracy sets tol")
     tc = time.perf_counter()
-    model.compile()
+    c = model.compile()
     compile_time = time.perf_counter() - tc
     t0 = time.perf_counter()
+    floor = roundoff_bound(c)
+    if floor is not None and floor[0] > accuracy:
+        bound, dev, w, ratio = floor
+        raise AccuracyError(
+            f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}': the round-off of the stiffest "
+            f"link, {type(dev).__name__} '{dev.name}' (local mode {w / 2 / math.pi:.3g} Hz, {ratio:.3g} times "
+            f"faster than the softest), may put up to eps * {ratio:.3g}^2 = {bound:.2g} of the range on the answer "
+            f"whatever the solver and its settings, and no pair of runs can see it (both carry it). Make that link "
+            f"rigid (Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it, or ask for a looser accuracy.",
+            component=dev.name, estimate=bound, accuracy=accuracy)
     if is_fixed_step(solver, options):
         res = _fixed_step(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
     else:
         res = _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
     total = time.perf_counter() - t0
     st = res.stats
+    if floor is not None:
+        st.extra["error_floor"] = floor[0]
+        if st.error_estimate is not None and st.error_estimate < floor[0]:
+            st.error_estimate = floor[0]
     main = st.extra.get("wall_time_main", st.wall_time)
     st.extra["wall_time_main"] = main
     st.extra["estimate_time"] = max(0.0, total - main)
     st.wall_time = max(st.wall_time, total)
     st.compile_time = max(st.compile_time, compile_time)
     return res
+
+
+def roundoff_bound(c):
+    """``(bound, device, omega, ratio)``: the a-priori bound ``eps (w_max/w_min)^2`` of the error that the
+    round-off of the stiffest link puts on any answer (relative to the range; measured 0.01 to 0.25 of it on
+    the stretched chains of the hard cases, ``expm.roundoff_floor``), None without links. Two runs of a
+    pair share it, so their difference cannot show it: no estimate is reported below it."""
+    floor = spread_rtol_floor(c)
+    if floor is None:
+        return None
+    rmin, dev, w, ratio = floor
+    return float(np.finfo(float).eps * ratio ** 2), dev, w, ratio
 
 
 def _run_or_explain(fn, model, solver, accuracy, what, **kw):
@@ -304,14 +332,16 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     if rtol0 is not None and not (isinstance(rtol0, (int, float)) and not isinstance(rtol0, bool) and rtol0 > 0):
         raise ParameterError(f"solver '{solver}': rtol must be a positive number, got {rtol0!r}")
     r = float(rtol0) if rtol0 is not None else accuracy * RTOL_FACTOR.get(solver, 0.01)
+    c = model.compile()
     # the stiffest link's round-off bounds the useful rtol (common.check_link_spread): the pair never goes
     # below it; an accuracy that would need a tighter one is refused naming the link
-    floor = spread_rtol_floor(model.compile()) if options.get("stiff_check", True) else None
+    floor = spread_rtol_floor(c) if options.get("stiff_check", True) else None
     r_floor = floor[0] * 1.000001 if floor is not None else 0.0
     r = max(r, TIGHTEN * r_floor)
+    bound = roundoff_bound(c)
+    round_off = bound[0] if bound is not None else 0.0
     # atol follows rtol: the solvers' default ratio 1e-2, or the ratio the user gave
     atol_ratio = ATOL_RATIO if atol0 is None else np.asarray(atol0, float) / r
-    c = model.compile()
     labels = result_state_labels(c)
     grid = output_grid(t_start, t_end, dt_out)
 
@@ -340,6 +370,8 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
                                 **_worst_fields(history, floor))
         tight = run(r_tight)
         est = compare_runs(loose, tight, labels, grid)
+        if est.value < round_off:
+            est = dataclasses.replace(est, value=round_off)
         ev = match_events(loose.events, tight.events)
         history.append((r, est, ev))
         if est.value <= accuracy and ev.same_path:
