@@ -46,23 +46,30 @@ How it is estimated, per family of solver:
   (an estimate against 2h is no bound where the error does not fall steadily
   with h, e.g. around events; richardson also checks the order against a
   run at 4h when the estimate passes only through the division by
-  ``2^p - 1``); without ``h`` a
-  first step from the output interval and, for the explicit methods, half
-  their stability limit on the fastest link; a refusal that suggests a step
+  ``2^p - 1``); without ``h`` a first step from the output interval and,
+  for the explicit methods, ``STABLE_FRACTION`` of their stability limit on
+  the fastest link; a refusal that suggests a step
   (``AccuracyError.suggested_h``) is retried with it, at most
   ``MAX_ATTEMPTS`` runs, and never beyond ``MAX_FIXED_STEPS`` steps.
 
 A run whose companion takes another path through the modes is retried
 tighter; if the paths still differ at the last attempt the run is refused
-naming the device. Every refusal names the worst signal, its component,
-the estimate, the instant and what would meet the accuracy.
+naming the device. Both families share one more limit: the round-off of
+the stiffest link puts up to ``eps (w_max/w_min)^2`` of the range on any
+answer (``roundoff_bound``), the same in both runs of a pair, so no
+difference shows it: no estimate is reported below it, an accuracy below it
+is refused before any run, and the pair's rtol never goes below the limit
+of ``common.check_link_spread``. Every refusal names the worst signal (or
+the stiffest link), its component, the estimate, the instant and what would
+meet the accuracy.
 
 ``stats`` of a run made with ``accuracy=``: ``error_estimate``; in
 ``extra``: ``error_signal``, ``error_component``, ``error_t``,
 ``accuracy``, ``attempts``, ``estimate_time`` (time of every run but the
 returned one), ``settings`` (rtol/atol or h the run ended with),
-``error_method``, ``event_time_error`` (with events); ``wall_time`` counts
-every run, ``extra["wall_time_main"]`` the returned one alone.
+``error_method``, ``error_floor`` (the round-off bound, with links),
+``event_time_error`` (with events); ``wall_time`` counts every run,
+``extra["wall_time_main"]`` the returned one alone.
 """
 
 from __future__ import annotations
