@@ -538,9 +538,18 @@ def _fixed_step(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
         if steps > MAX_FIXED_STEPS:
             fields = tried[-1][1].fields() if tried else {}
             fields.update(accuracy=accuracy, suggested_h=h)
+            why = ""
+            if fields.get("signal"):
+                why = f" (worst signal {fields['signal']} of '{fields['component']}')"
+            else:
+                link = model.compile().fastest_link()
+                if link is not None:
+                    fields["component"] = link[0].name
+                    why = (f" (the stability limit on the fastest link, {type(link[0]).__name__} '{link[0].name}', "
+                           f"{link[1] / 2 / math.pi:.3g} Hz)")
             raise AccuracyError(
                 f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}' needs a step of about "
-                f"{h:.3g} s, {steps:.3g} steps for the run, more than {MAX_FIXED_STEPS:,} (steps tried: "
+                f"{h:.3g} s{why}, {steps:.3g} steps for the run, more than {MAX_FIXED_STEPS:,} (steps tried: "
                 f"{_tried_text(tried)}). Use an adaptive solver ('ida', 'scipy:DOP853'), 'expm' for a linear "
                 f"model, or a looser accuracy.", **fields)
         try:
