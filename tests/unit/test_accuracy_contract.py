@@ -286,3 +286,31 @@ def test_richardson_checks_the_order_it_relies_on():
     with pytest.raises(rm.AccuracyError) as info:
         excavator_swing().simulate(2.0, dt_out=2e-3, solver="rk4", h=2e-3, tol=1e-6)
     assert info.value.suggested_h is not None and info.value.suggested_h < 2e-3
+
+
+# ----------------------------------------------------------------------------- threading: Scene, sweep
+def test_scene_accuracy_bounds_the_outputs_against_the_full_model():
+    from regmech.scene import REDUCTION_SHARE, SOLVER_SHARE
+    m, exact = two_inertias()
+    sc = rm.Scene(m, t_end=2.0, outputs=["J2.w"], accuracy=1e-3, dt_out=0.01)
+    res = sc.simulate()
+    assert res.stats.extra["accuracy"] == pytest.approx(SOLVER_SHARE * 1e-3)
+    assert achieved(res, exact) <= 1e-3
+    rep = sc.report(repeats=1)
+    assert rep.max_error <= REDUCTION_SHARE * 1e-3 and "simulations at 0.0001" in str(rep)
+    with pytest.raises(rm.ParameterError, match="accuracy"):
+        rm.Scene(m, t_end=2.0, outputs=["J2.w"], accuracy=0.5)
+
+
+def test_sweep_passes_the_accuracy_to_every_run():
+    def build(c=200.0):
+        return two_inertias(c=c)[0]
+    with pytest.warns(RuntimeWarning, match="all 2 runs failed"):
+        table = rm.sweep(build, {"c": [100.0, 200.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0,
+                         dt_out=0.01, accuracy=0.5)
+    status = list(table["status"]) if hasattr(table, "iloc") else table.column("status")
+    errors = list(table["error"]) if hasattr(table, "iloc") else table.column("error")
+    assert status == ["failed", "failed"] and all("accuracy" in e for e in errors)
+    table = rm.sweep(build, {"c": [100.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0, dt_out=0.01,
+                     accuracy=1e-4)
+    assert list(table["status"] if hasattr(table, "iloc") else table.column("status")) == ["ok"]
