@@ -65,7 +65,7 @@ def main(argv=None) -> int:
     from dask.distributed import Client, LocalCluster
 
     sample = rm.latin_hypercube({"fn_max": (10.0, 40.0), "t2": (0.2, 0.6)}, n=args.n, seed=1)
-    sim = dict(t_end=args.t_end, dt_out=0.01, rtol=1e-6, atol=1e-8)
+    sim = dict(t_end=args.t_end, dt_out=0.01, solver="ida", rtol=1e-6, atol=1e-8)
     load0 = os.getloadavg()
     # the Dask workers start first: they import regmech at the same time as this process
     t0 = time.perf_counter()

@@ -103,7 +103,7 @@ def main(argv=None) -> int:
     table = rm.sweep(SCENES[scene], {cap: cap_values, timing: timing_values},
                      partial(launch_outputs, clutch=study["clutch"], torque=study["torque"]),
                      executor=args.executor, out=out / "clutch_capacity_study.csv",
-                     t_end=study["t_end"], dt_out=study["t_end"] / 1000, rtol=1e-6, atol=1e-8)
+                     t_end=study["t_end"], dt_out=study["t_end"] / 1000, solver="ida", rtol=1e-6, atol=1e-8)
     print(table.drop(columns=["error"]).to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     failed = table[table["status"] != "ok"]
     for _, row in failed.iterrows():

@@ -1,10 +1,11 @@
 """Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``.
 
-``regmech demo --out DIR`` simulates ready-made drivetrain scenes with IDA
-(MSL First: motor, gear, elastic load; CoupledClutches: stick/slip; a car's
-launch through a slipping clutch), checks
-them against the MSL reference data when it is found next to the checkout,
-and writes CSV results and PNG plots to DIR.
+``regmech demo --out DIR`` simulates ready-made drivetrain scenes (MSL
+First: motor, gear, elastic load; CoupledClutches: stick/slip; a car's
+launch through a slipping clutch) with ``--solver`` (default ``auto``) at
+``--accuracy`` (default 1e-3), checks them against the MSL reference data
+when it is found next to the checkout, and writes CSV results and PNG plots
+to DIR.
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ def _demo(args) -> int:
     ]
     for name, model, t_end, speeds, torques in runs:
         t0 = time.perf_counter()
-        res = model.simulate(t_end, dt_out=5e-4, solver="ida", rtol=args.rtol)
+        opts = {"rtol": args.rtol} if args.rtol is not None else {}
+        res = model.simulate(t_end, dt_out=5e-4, solver=args.solver, accuracy=args.accuracy, **opts)
         wall = time.perf_counter() - t0
         csv_path = out / f"{name}.csv"
         res.to_csv(csv_path, speeds + torques + [n for n in res.names if n.endswith(".mode")])
@@ -46,6 +48,7 @@ def _demo(args) -> int:
             png_path = None
         print(f"{model.name}: simulated {t_end} s in {wall * 1e3:.0f} ms ({res.stats.rhs_calls} residual calls, "
               f"{len(res.events)} mode changes)")
+        print(f"    {res.stats}")
         for ev in res.events:
             print(f"    {ev}")
         print(f"    results: {csv_path}")
@@ -101,7 +104,11 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("demo", help="simulate ready-made drivetrain scenes, write CSV and PNG")
     p.add_argument("--out", default="out", help="output folder (default: out)")
-    p.add_argument("--rtol", type=float, default=1e-8, help="IDA relative tolerance (default 1e-8)")
+    p.add_argument("--solver", default="auto", help="solver (default auto: chosen from the model and --accuracy)")
+    p.add_argument("--accuracy", type=float, default=None,
+                   help="bound of the estimated global error (relative to the range of each kind of state "
+                        "signal; default 1e-3 with the auto solver)")
+    p.add_argument("--rtol", type=float, default=None, help="relative tolerance of a named --solver")
     p.set_defaults(func=_demo)
     p = sub.add_parser("scenes", help="list the ready-made scenes")
     p.set_defaults(func=_scenes)

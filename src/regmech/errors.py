@@ -50,8 +50,35 @@ class SimulationTimeout(SimulationError):
 
 
 class AccuracyError(SimulationError):
-    """A fixed-step run whose estimated global error exceeds its tolerance ``tol``
-    (``regmech.solvers.richardson``): the answer would be wrong, so none is returned."""
+    """A run whose estimated global error exceeds the accuracy asked for (``accuracy=``, or ``tol`` of a
+    fixed-step solver): the answer would be wrong, so none is returned.
+
+    Besides the message, the refusal carries what a program needs to react (each None when not known):
+    ``signal`` and ``component`` (the worst signal and its component), ``estimate`` (its estimated error
+    relative to the range of the signals of its kind), ``t`` [s] (where), ``accuracy`` (the bound asked
+    for) and ``suggested_h`` [s] (a fixed step expected to meet it; ``regmech.solvers.richardson``).
+    """
+
+    FIELDS = ("signal", "component", "estimate", "t", "accuracy", "suggested_h")
+
+    def __init__(self, message="", **fields):
+        unknown = set(fields) - set(self.FIELDS)
+        if unknown:
+            raise TypeError(f"AccuracyError: unknown fields {sorted(unknown)}")
+        super().__init__(message)
+        for name in self.FIELDS:
+            setattr(self, name, fields.get(name))
+
+    def fields(self) -> dict:
+        return {name: getattr(self, name) for name in self.FIELDS}
+
+    def __reduce__(self):
+        # keep the fields across pickling (parallel sweeps send errors between processes)
+        return (_rebuild_accuracy_error, (type(self), str(self), self.fields()))
+
+
+def _rebuild_accuracy_error(cls, message, fields):
+    return cls(message, **fields)
 
 
 class RegularityWarning(UserWarning):

@@ -160,19 +160,24 @@ class Model:
             self._compiled = compile_model(self)
         return self._compiled
 
-    def simulate(self, t_end: float, dt_out: float | None = None, solver: str = "ida", *,
-                 t_start: float = 0.0, **options):
+    def simulate(self, t_end: float, dt_out: float | None = None, solver: str = "auto", *,
+                 accuracy: float | None = None, t_start: float = 0.0, **options):
         """Simulate from ``t_start`` to ``t_end``; returns a ``Result``.
 
-        ``dt_out`` is the output interval (default: 500 points); ``solver``
-        one of ``regmech.solvers.SOLVERS``; ``timeout_s`` [s] bounds the
-        run's wall time (``SimulationTimeout`` beyond it); remaining options
-        (``rtol``, ``atol``, ...) go to the solver, checked first against
-        the options it declares (``regmech.solvers.options``);
-        ``max_points`` (default 1,000,000) caps the number of output points.
+        ``dt_out`` is the output interval (default: 500 points). ``solver``:
+        ``"auto"`` (default) picks the method from the model's structure and
+        meets ``accuracy`` (default 1e-3: the bound of the estimated global
+        error of every state signal relative to the range of the signals of
+        its kind; ``AccuracyError`` when it cannot); or one of
+        ``regmech.solvers.SOLVERS``, which runs exactly as asked with its
+        options (``rtol``, ``atol``, ``h``, ...), under the same contract when
+        ``accuracy`` is given (see ``regmech.solvers.accuracy``); ``timeout_s`` [s] bounds
+        a run's wall time (``SimulationTimeout`` beyond it); ``max_points``
+        (default 1,000,000) caps the number of output points.
         """
         from .solvers import simulate
-        return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, t_start=t_start, **options)
+        return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, accuracy=accuracy, t_start=t_start,
+                        **options)
 
     def linearize(self, t: float = 0.0, modes=None, at=None, **options):
         """Structural-matrix form ``M q'' + B q' + C q = W u`` (see ``compile.linear.linearize``;

@@ -40,12 +40,16 @@ class Event:
     old_mode: int
     new_mode: int
     kind: str = "mode"
+    #: estimated error of ``t`` [s] (runs made with ``accuracy=``: the difference of the switch times of the
+    #: companion runs, ``regmech.solvers.accuracy``); None: not estimated
+    t_error: float | None = None
 
     def __str__(self):
+        err = "" if self.t_error is None else f" (+-{self.t_error:.2g} s)"
         if self.kind == "driving side":
-            return (f"t={self.t:.6g}: {self.component} driving side: {DRIVING_NAMES.get(self.old_mode, self.old_mode)}"
-                    f" -> {DRIVING_NAMES.get(self.new_mode, self.new_mode)}")
-        return (f"t={self.t:.6g}: {self.component} {MODE_NAMES.get(self.old_mode, self.old_mode)} -> "
+            return (f"t={self.t:.6g}{err}: {self.component} driving side: "
+                    f"{DRIVING_NAMES.get(self.old_mode, self.old_mode)} -> {DRIVING_NAMES.get(self.new_mode, self.new_mode)}")
+        return (f"t={self.t:.6g}{err}: {self.component} {MODE_NAMES.get(self.old_mode, self.old_mode)} -> "
                 f"{MODE_NAMES.get(self.new_mode, self.new_mode)}")
 
 
@@ -59,17 +63,33 @@ class Stats:
     jac_calls: int = 0
     segments: int = 0
     events: int = 0
-    #: fixed-step solvers (euler, rk4, abm, expm) with ``tol`` set: the estimated global error of the run,
-    #: max over the ODE-form states and output instants of |error| / (range of the states of that kind)
-    #: (``regmech.solvers.richardson``; which state and when in ``extra``); None: not estimated
+    #: the estimated global error of the run, max over the state signals (positions and speeds of every
+    #: mass, internal states) and the output instants of |error| / (range of the signals of that kind):
+    #: every run made with ``accuracy=`` (``regmech.solvers.accuracy``; which signal, component and when,
+    #: the accuracy, the settings the run ended with, attempts and the cost of the estimate in ``extra``)
+    #: and fixed-step runs with ``tol`` set (``regmech.solvers.richardson``); None: not estimated
     error_estimate: float | None = None
     extra: dict = field(default_factory=dict)
 
     def __str__(self):
         steps = "? steps" if self.steps is None else f"{self.steps} steps"
-        est = "" if self.error_estimate is None else f", estimated error {self.error_estimate:.2g}"
+        est = ""
+        if self.error_estimate is not None:
+            x = self.extra
+            est = f", estimated error {self.error_estimate:.2g}"
+            if x.get("accuracy") is not None:
+                where = ""
+                if x.get("error_signal"):
+                    where = f", worst {x['error_signal']} at t={x.get('error_t', float('nan')):.4g} s"
+                settings = ", ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
+                                     for k, v in (x.get("settings") or {}).items())
+                est += (f" <= accuracy {x['accuracy']:g}{where}; {settings}; {x.get('attempts', 1)} attempt(s), "
+                        f"estimate {x.get('estimate_time', 0.0) * 1e3:.1f} ms")
+                if x.get("event_time_error") is not None:
+                    est += f"; switch times +-{x['event_time_error']:.2g} s"
+        auto = f" [auto: {self.extra['auto_reason']}]" if self.extra.get("auto_reason") else ""
         return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms, {steps}, {self.rhs_calls} residual/RHS "
-                f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}")
+                f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}{auto}")
 
 
 class Result:

@@ -41,7 +41,7 @@ def _prescribed(device, amplitude=1.0, freq_hz=1.0, offset=0.2):
 @pytest.mark.parametrize("c,d,b", [(100.0, 30.0, 0.6), (50.0, 0.0, 0.4), (80.0, 500.0, 1.0)])
 def test_elasto_backlash_law_matches_msl_formula(c, d, b):
     dev = ElastoBacklash("eb", c=c, d=d, b=b, phi_rel0=0.1)
-    res = _prescribed(dev).simulate(2.0, dt_out=1e-3, rtol=1e-8)
+    res = _prescribed(dev).simulate(2.0, dt_out=1e-3, rtol=1e-8, solver="ida")
     phi, w = res["eb.phi_rel"], res["eb.w_rel"]
     t = res.t
     np.testing.assert_allclose(phi, 0.2 + np.sin(2 * np.pi * t), atol=1e-9)
@@ -57,7 +57,7 @@ def test_elasto_backlash_law_matches_msl_formula(c, d, b):
 def test_elasto_backlash_torque_continuous_at_contact_and_never_pulling():
     c, d, b = 100.0, 400.0, 0.6
     dev = ElastoBacklash("eb", c=c, d=d, b=b)
-    res = _prescribed(dev, offset=0.0).simulate(2.0, dt_out=2e-4, rtol=1e-8)
+    res = _prescribed(dev, offset=0.0).simulate(2.0, dt_out=2e-4, rtol=1e-8, solver="ida")
     phi, tau = res["eb.phi_rel"], res["eb.tau"]
     # contact pushes only: tau has the sign of the penetration
     assert np.all(tau * np.sign(phi) >= -1e-12)
@@ -75,7 +75,7 @@ def test_elasto_backlash_torque_continuous_at_contact_and_never_pulling():
 def test_backlash_is_a_dead_zone_spring():
     c, b = 40.0, 0.5
     dev = Backlash("bl", c=c, b=b)
-    res = _prescribed(dev, offset=0.0).simulate(1.0, dt_out=1e-3, rtol=1e-8)
+    res = _prescribed(dev, offset=0.0).simulate(1.0, dt_out=1e-3, rtol=1e-8, solver="ida")
     phi = res["bl.phi_rel"]
     dz = np.where(phi > b / 2, phi - b / 2, np.where(phi < -b / 2, phi + b / 2, 0.0))
     np.testing.assert_allclose(res["bl.tau"], c * dz, rtol=1e-12, atol=1e-12)
@@ -91,8 +91,9 @@ def test_zero_backlash_is_a_spring_damper():
         m.connect(device.flange_a, fixed.flange)
         m.connect(device.flange_b, J.flange_a)
         return m
-    r1 = build(ElastoBacklash("link", c=500.0, d=3.0, b=0.0)).simulate(1.0, dt_out=0.01, rtol=1e-10, atol=1e-12)
-    r2 = build(SpringDamper("link", c=500.0, d=3.0)).simulate(1.0, dt_out=0.01, rtol=1e-10, atol=1e-12)
+    r1 = build(ElastoBacklash("link", c=500.0, d=3.0, b=0.0)).simulate(1.0, dt_out=0.01, rtol=1e-10, atol=1e-12,
+                                                                        solver="ida")
+    r2 = build(SpringDamper("link", c=500.0, d=3.0)).simulate(1.0, dt_out=0.01, rtol=1e-10, atol=1e-12, solver="ida")
     np.testing.assert_allclose(r1["J.phi"], r2["J.phi"], atol=1e-8)
 
 
@@ -105,7 +106,7 @@ def test_free_flight_inside_the_play_then_contact():
     J = m.add(Inertia("J", J=0.5, phi0=0.0, w0=w0))
     m.connect(eb.flange_a, fixed.flange)
     m.connect(eb.flange_b, J.flange_a)
-    res = m.simulate(0.3, dt_out=1e-3, rtol=1e-9, atol=1e-11)
+    res = m.simulate(0.3, dt_out=1e-3, rtol=1e-9, atol=1e-11, solver="ida")
     t_contact = (b / 2) / w0
     free = res.t < t_contact - 1e-9
     np.testing.assert_allclose(res["J.phi"][free], w0 * res.t[free], rtol=1e-9, atol=1e-11)
@@ -126,7 +127,7 @@ def test_translational_elasto_backlash_dissipates_only():
     car = m.add(Mass("car", m=100.0, s0=0.0, v0=1.5))
     m.connect(eb.flange_a, fixed.flange)
     m.connect(eb.flange_b, car.flange_a)
-    res = m.simulate(1.0, dt_out=2e-4, rtol=1e-9, atol=1e-11)
+    res = m.simulate(1.0, dt_out=2e-4, rtol=1e-9, atol=1e-11, solver="ida")
     assert "slack.s_rel" in res and "slack.f" in res
     t = res.t
     dissipated = np.cumsum(np.concatenate([[0.0], np.diff(t) * (res["slack.power"][1:] + res["slack.power"][:-1]) / 2]))

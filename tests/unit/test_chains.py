@@ -30,7 +30,7 @@ def test_scenes_are_registered():
 
 def test_train_energy_balance():
     n, d, c_r, v_eps, m_car = 8, 5e4, 0.0015, 0.05, 60e3
-    res = chains.train(n, d=d, c_r=c_r, v_eps=v_eps, m_car=m_car).simulate(20.0, dt_out=5e-3, rtol=1e-8)
+    res = chains.train(n, d=d, c_r=c_r, v_eps=v_eps, m_car=m_car).simulate(20.0, dt_out=5e-3, rtol=1e-8, solver="ida")
     t = res.t
     work = -_integral(res["traction.power"], t)             # sources: absorbed power counts negative
     kinetic = sum(res[f"car{i}.kinetic"][-1] - res[f"car{i}.kinetic"][0] for i in range(n))
@@ -56,7 +56,7 @@ def test_train_frequencies_are_those_of_a_free_free_chain(n):
 
 
 def test_train_wave_reaches_the_last_car():
-    res = chains.train(6).simulate(20.0, dt_out=0.01, rtol=1e-8)
+    res = chains.train(6).simulate(20.0, dt_out=0.01, rtol=1e-8, solver="ida")
     assert res["car5.v"][-1] > 1.0
     # at the end every car moves together (to within the coupler oscillation)
     speeds = np.array([res[f"car{i}.v"][-1] for i in range(6)])
@@ -84,7 +84,7 @@ def test_chain_drive_energy_balance(ey, ez):
     n_links, pitch, beta = 4, 0.0127, 1e-5
     params = dict(c_axial=5e7, c_shear=5e7, c_torsion=20.0, c_bend_y=20.0, c_bend_z=2.0)
     model = chains.chain_drive(n_links=n_links, pitch=pitch, beta=beta, offset_y=ey, offset_z=ez, **params)
-    res = model.simulate(0.01, dt_out=2e-6, rtol=1e-8)
+    res = model.simulate(0.01, dt_out=2e-6, rtol=1e-8, solver="ida")
     t = res.t
     work = -_integral(res["axial_drive.power"] + res["lateral_drive.power"], t)
     kinetic = sum(res[n][-1] - res[n][0] for n in res.names if n.endswith(".kinetic"))

@@ -42,7 +42,7 @@ def test_differential_rigid_accelerations_match_hand_solution():
     # Jc ac = T - lam; J_side a_side = (ratio/2) lam; ac = ratio (al + ar)/2
     ratio, T, Jc, Jl, Jr = 3.0, 10.0, 0.5, 2.0, 1.0
     lam = T / (1.0 + Jc * ratio ** 2 / 4 * (1 / Jl + 1 / Jr))
-    res = _differential_model(ratio, T, Jc, Jl, Jr).simulate(1.0, dt_out=0.1, **TIGHT)
+    res = _differential_model(ratio, T, Jc, Jl, Jr).simulate(1.0, dt_out=0.1, **TIGHT, solver="ida")
     t = res.t
     np.testing.assert_allclose(res["right.w"], ratio * lam / (2 * Jr) * t, rtol=1e-8, atol=1e-10)
     np.testing.assert_allclose(res["left.w"], ratio * lam / (2 * Jl) * t, rtol=1e-8, atol=1e-10)
@@ -50,7 +50,7 @@ def test_differential_rigid_accelerations_match_hand_solution():
 
 
 def test_differential_kinematics_and_equal_side_torques():
-    res = _differential_model(d_left=3.0).simulate(2.0, dt_out=0.01, **TIGHT)
+    res = _differential_model(d_left=3.0).simulate(2.0, dt_out=0.01, **TIGHT, solver="ida")
     ratio = 3.0
     # carrier = ratio * mean of the sides, at every output instant
     np.testing.assert_allclose(res["carrier.phi"], ratio * (res["left.phi"] + res["right.phi"]) / 2,
@@ -70,7 +70,7 @@ def test_one_wheel_on_ice_spins_at_twice_the_mean():
     # the side torques are equal, so the small right torque leaves the left wheel nearly at rest
     ratio = 2.0
     res = _differential_model(ratio=ratio, T=5.0, Jc=0.5, Jl=2.0, Jr=1e-4, d_left=50.0).simulate(
-        1.0, dt_out=0.01, **TIGHT)
+        1.0, dt_out=0.01, **TIGHT, solver="ida")
     mean = res["carrier.w"][-1] / ratio
     assert mean > 1.0
     assert res["right.w"][-1] == pytest.approx(2 * mean, rel=1e-3)
@@ -81,7 +81,7 @@ def test_one_wheel_on_ice_spins_at_twice_the_mean():
 
 def test_locked_carrier_sides_turn_opposite():
     res = _differential_model(carrier_fixed=True, Jl=2.0, Jr=2.0, left_torque=4.0).simulate(
-        1.0, dt_out=0.05, **TIGHT)
+        1.0, dt_out=0.05, **TIGHT, solver="ida")
     np.testing.assert_allclose(res["left.w"], -res["right.w"], rtol=1e-9, atol=1e-12)
     # two equal inertias driven together by 4 N m: a = 4 / (2 + 2)
     np.testing.assert_allclose(res["left.w"], 1.0 * res.t, rtol=1e-8, atol=1e-12)
@@ -99,7 +99,7 @@ def test_differential_with_rotating_support_uses_relative_angles():
     m.connect(diff.support, housing.flange_a)
     drive = m.add(Torque("drive", tau=2.0))
     m.connect(drive.flange, parts["carrier"].flange_b)
-    res = m.simulate(1.0, dt_out=0.05, **TIGHT)
+    res = m.simulate(1.0, dt_out=0.05, **TIGHT, solver="ida")
     s = res["housing.phi"]
     np.testing.assert_allclose(res["carrier.phi"] - s, 2.5 * ((res["left.phi"] + res["right.phi"]) / 2 - s),
                                rtol=1e-9, atol=1e-10)
@@ -133,7 +133,7 @@ def _planetary_model(ratio, ring_fixed=False):
 
 def test_planetary_willis_relation_and_torque_ratios():
     ratio = 100 / 50
-    res = _planetary_model(ratio).simulate(1.0, dt_out=0.05, **TIGHT)
+    res = _planetary_model(ratio).simulate(1.0, dt_out=0.05, **TIGHT, solver="ida")
     np.testing.assert_allclose((1 + ratio) * res["carrier.phi"], res["sun.phi"] + ratio * res["ring.phi"],
                                rtol=1e-9, atol=1e-11)
     sun_tau = res["planetary.sun.tau"]
@@ -146,7 +146,7 @@ def test_planetary_willis_relation_and_torque_ratios():
 def test_planetary_locked_ring_reduction():
     # ring held: sun in, carrier out, reduction 1 + ratio; rigid system with J_eff at the sun
     ratio = 3.0
-    res = _planetary_model(ratio, ring_fixed=True).simulate(1.0, dt_out=0.05, **TIGHT)
+    res = _planetary_model(ratio, ring_fixed=True).simulate(1.0, dt_out=0.05, **TIGHT, solver="ida")
     np.testing.assert_allclose(res["sun.w"], (1 + ratio) * res["carrier.w"], rtol=1e-9, atol=1e-12)
     J_eff = 0.1 + 2.0 / (1 + ratio) ** 2
     np.testing.assert_allclose(res["sun.w"], 1.5 / J_eff * res.t, rtol=1e-8, atol=1e-12)

@@ -26,7 +26,7 @@ def planetary_ring_held(cls, eta=0.9, T=10.0, r=2.0, **kw):
 def test_lossy_planetary_output_torque_is_one_plus_eta_ratio_times_input():
     eta, T, r = 0.9, 10.0, 2.0
     res = planetary_ring_held(LossyPlanetary, eta, T, r, loss_table=[[0.0, eta, eta, 0.0, 0.0]]).simulate(
-        1.0, dt_out=1e-2, rtol=1e-9)
+        1.0, dt_out=1e-2, rtol=1e-9, solver="ida")
     a_c = np.gradient(res["carrier.w"], res.t)[5:-5]
     J_eff = 2.0 + 1e-3 * (1 + r) ** 2 * (1 + eta * r) / (1 + r)   # sun inertia reflected (driving side)
     assert np.allclose(a_c, (1 + eta * r) * T / J_eff, rtol=2e-4)
@@ -36,8 +36,9 @@ def test_lossy_planetary_output_torque_is_one_plus_eta_ratio_times_input():
 
 
 def test_ideal_table_equals_ideal_planetary():
-    a = planetary_ring_held(LossyPlanetary, loss_table=[[0.0, 1.0, 1.0, 0.0, 0.0]]).simulate(0.5, dt_out=0.05, rtol=1e-10)
-    b = planetary_ring_held(Planetary).simulate(0.5, dt_out=0.05, rtol=1e-10)
+    a = planetary_ring_held(LossyPlanetary, loss_table=[[0.0, 1.0, 1.0, 0.0, 0.0]]).simulate(0.5, dt_out=0.05, rtol=1e-10,
+                                                                                          solver="ida")
+    b = planetary_ring_held(Planetary).simulate(0.5, dt_out=0.05, rtol=1e-10, solver="ida")
     assert np.allclose(a["carrier.w"], b["carrier.w"], rtol=1e-9, atol=1e-12)
 
 
@@ -61,7 +62,7 @@ def lsd_on_ice(preload):
 
 @pytest.mark.parametrize("preload", [0.0, 2e3, 1e6])
 def test_limited_slip_differential_transfers_torque_to_the_gripping_wheel(preload):
-    res = lsd_on_ice(preload).simulate(1.0, dt_out=1e-2, rtol=1e-8)
+    res = lsd_on_ice(preload).simulate(1.0, dt_out=1e-2, rtol=1e-8, solver="ida")
     slip = res["wheel_ice.w"][-1] - res["wheel_grip.w"][-1]
     if preload == 0.0:
         assert slip > 10.0                           # open: the wheel on ice spins away
@@ -72,5 +73,5 @@ def test_limited_slip_differential_transfers_torque_to_the_gripping_wheel(preloa
         # sliding plates carry mu cgeo fn = 10 N m from the fast side to the slow side
         sliding = res["lsd.lock.mode"] != 0
         assert sliding[-1] and np.allclose(np.abs(res["lsd.lock.tau"][sliding]), 10.0)
-        open_slip = lsd_on_ice(0.0).simulate(1.0, dt_out=1e-2, rtol=1e-8)
+        open_slip = lsd_on_ice(0.0).simulate(1.0, dt_out=1e-2, rtol=1e-8, solver="ida")
         assert 0 < slip < open_slip["wheel_ice.w"][-1] - open_slip["wheel_grip.w"][-1]

@@ -35,7 +35,7 @@ def test_engine_torque_follows_the_map_times_throttle():
     drive = m.add(Speed("speed_sweep", w_ref=Ramp(height=700.0, duration=1.0, offset=-50.0)))  # -50 .. 650 rad/s
     m.connect(engine.flange, crank.flange_a)
     m.connect(drive.flange, crank.flange_b)
-    res = m.simulate(1.0, dt_out=1e-3, rtol=1e-8)
+    res = m.simulate(1.0, dt_out=1e-3, rtol=1e-8, solver="ida")
     w = res["crank.w"]
     xs, ys = np.array(TORQUE_MAP).T
     np.testing.assert_allclose(res["engine.tau"], 0.7 * np.interp(w, xs, ys), rtol=1e-10, atol=1e-9)
@@ -46,7 +46,7 @@ def test_engine_torque_follows_the_map_times_throttle():
 
 def test_engine_settles_where_torque_meets_load():
     # on the segment 100..400 rad/s: 0.8 (150 + (w - 100)/6) = 0.6 w
-    res = _engine_on_load(throttle=0.8).simulate(20.0, dt_out=0.1, **TIGHT)
+    res = _engine_on_load(throttle=0.8).simulate(20.0, dt_out=0.1, **TIGHT, solver="ida")
     w_eq = (0.8 * (150.0 - 100.0 / 6.0)) / (0.6 - 0.8 / 6.0)
     assert res["crank.w"][-1] == pytest.approx(w_eq, rel=1e-8)
     assert res["engine.tau"][-1] == pytest.approx(0.6 * w_eq, rel=1e-8)
@@ -54,7 +54,7 @@ def test_engine_settles_where_torque_meets_load():
 
 def test_engine_throttle_step_is_a_time_event():
     # throttle 0 -> 1 at t = 0.5: before it the crank coasts down on the damper alone
-    res = _engine_on_load(throttle=Step(height=1.0, start_time=0.5)).simulate(1.0, dt_out=0.01, **TIGHT)
+    res = _engine_on_load(throttle=Step(height=1.0, start_time=0.5)).simulate(1.0, dt_out=0.01, **TIGHT, solver="ida")
     before = res.t <= 0.5
     np.testing.assert_allclose(res["crank.w"][before], 50.0 * np.exp(-0.6 / 0.2 * res.t[before]), rtol=1e-8)
     assert res["crank.w"][-1] > res["crank.w"][before][-1]
@@ -77,7 +77,7 @@ def test_engines_with_one_map_share_a_class_and_maps_can_change():
     assert type(c) is type(a)
     res = _engine_on_load(throttle=0.8, torque_map=[[0.0, 10.0], [1.0, 20.0]])
     res["engine"].torque_map = TORQUE_MAP        # the model is rebuilt with the new map
-    out = res.simulate(20.0, dt_out=1.0, **TIGHT)
+    out = res.simulate(20.0, dt_out=1.0, **TIGHT, solver="ida")
     w_eq = (0.8 * (150.0 - 100.0 / 6.0)) / (0.6 - 0.8 / 6.0)
     assert out["crank.w"][-1] == pytest.approx(w_eq, rel=1e-8)
 
@@ -116,7 +116,7 @@ def test_vehicle_reaches_the_speed_where_drive_equals_resistance():
     road = RoadLoad.for_vehicle("road", m=m, c_r=0.012, c_d=0.3, area=2.2)
     assert road.f_roll == pytest.approx(0.012 * m * STANDARD_GRAVITY)
     assert road.c_drag == pytest.approx(0.5 * 1.2 * 0.3 * 2.2)
-    res = _car(F, road).simulate(1200.0, dt_out=2.0, **TIGHT)
+    res = _car(F, road).simulate(1200.0, dt_out=2.0, **TIGHT, solver="ida")
     V = math.sqrt((F - road.f_roll) / road.c_drag)
     v_exact = V * np.tanh(road.c_drag * V * res.t / m + math.atanh(1.0 / V))
     np.testing.assert_allclose(res["car.v"], v_exact, rtol=1e-7)
@@ -128,7 +128,7 @@ def test_grade_force_is_conservative_and_rolls_the_car_back():
     # uphill without drive: the car slows, stops, rolls back; height energy is the device's potential
     m = 1000.0
     road = RoadLoad("road", grade=0.05, m=m, f_roll=0.0, c_drag=0.0)
-    res = _car(0.0, road, v0=5.0, m=m).simulate(30.0, dt_out=0.01, **TIGHT)
+    res = _car(0.0, road, v0=5.0, m=m).simulate(30.0, dt_out=0.01, **TIGHT, solver="ida")
     a = -m * STANDARD_GRAVITY * math.sin(0.05) / m
     np.testing.assert_allclose(res["car.v"], 5.0 + a * res.t, rtol=1e-8, atol=1e-8)
     np.testing.assert_allclose(res["road.potential"], m * STANDARD_GRAVITY * math.sin(0.05) * res["car.s"],
@@ -147,7 +147,7 @@ def test_rolling_resistance_smoothing_near_zero_speed():
     m.add(road)
     m.connect(drive.flange, car.flange_a)
     m.connect(car.flange_b, road.flange)
-    res = m.simulate(0.9, dt_out=0.1, rtol=1e-8)
+    res = m.simulate(0.9, dt_out=0.1, rtol=1e-8, solver="ida")
     np.testing.assert_allclose(res["road.f"][1:], 100.0 * np.tanh(0.01 / 0.1), rtol=1e-10)
 
 

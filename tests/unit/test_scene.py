@@ -5,6 +5,7 @@ import pytest
 
 import regmech as rm
 from regmech.components import (Clutch, Damper, Fixed, IdealGear, Inertia, Shaft, SpringDamper, Torque)
+from regmech.scene import REDUCTION_SHARE
 from regmech.signals import Sine
 
 
@@ -35,7 +36,7 @@ def drivetrain(pto_engaged=0.0, k_out=1e4):
 
 
 def test_open_clutch_branch_is_removed_and_outputs_unchanged():
-    sc = rm.Scene(drivetrain(), t_end=1.0, outputs=["load.w", "shaft.tau"], rtol=1e-9)
+    sc = rm.Scene(drivetrain(), t_end=1.0, outputs=["load.w", "shaft.tau"], solver="ida", rtol=1e-9)
     red = sc.reduction
     assert "pump" not in red.model and "pto_clutch" not in red.model and "pump_load" not in red.model
     rep = sc.report(repeats=1)
@@ -51,11 +52,11 @@ def test_engaged_branch_is_kept():
 
 def test_near_rigid_shaft_becomes_rigid_within_target():
     sc = rm.Scene(drivetrain(k_out=1e8), t_end=1.0, outputs=["load.w", "flywheel.w"], band_hz=20.0,
-                  accuracy=1e-3, rtol=1e-7)
+                  accuracy=1e-3)           # simulations under the contract at 1e-4 (SOLVER_SHARE)
     acts = [a for a in sc.reduction.actions if a.kind == "rigidify" and a.applied]
     assert [a.components for a in acts] == [["shaft"]]
     rep = sc.report(repeats=1)
-    assert rep.max_error <= 1e-3
+    assert rep.max_error <= REDUCTION_SHARE * 1e-3
     assert rep.size_reduced["states"] == rep.size_full["states"] - 2 - 2   # stiff mode gone, pump branch gone
     assert rep.speedup is not None                                        # measured, not asserted
 
@@ -77,7 +78,7 @@ def test_leaf_behind_gear_is_reflected_and_its_signals_reconstructed():
     m.connect(drive.flange, J1.flange_a)
     m.connect(J1.flange_b, g.flange_a)
     m.connect(g.flange_b, J2.flange_a)
-    sc = rm.Scene(m, t_end=1.0, outputs=["J1.w"], rtol=1e-10)
+    sc = rm.Scene(m, t_end=1.0, outputs=["J1.w"], solver="ida", rtol=1e-10)
     assert "J2" not in sc.reduction.model and sc.reduction.model["J1"].J == pytest.approx(2.0)
     res = sc.simulate()
     assert np.allclose(res["J1.w"], 1.0 * res.t, atol=1e-9)           # 2 N m on J_eq = 1 + 9/9

@@ -29,7 +29,7 @@ def test_cubic_spring_subclass_simulates_like_the_ode():
     m.connect(f.flange, k.flange_a)
     m.connect(k.flange_b, J.flange_a)
     m.connect(drive.flange, J.flange_b)
-    res = m.simulate(3.0, dt_out=1e-2, rtol=1e-10, atol=1e-12)
+    res = m.simulate(3.0, dt_out=1e-2, rtol=1e-10, atol=1e-12, solver="ida")
 
     def rhs(t, y):
         return [y[1], (2.0 * np.sin(3.0 * t) - 20.0 * y[0] - 400.0 * y[0] ** 3) / 0.5]

@@ -23,7 +23,7 @@ from regmech.study.sampling import grid, latin_hypercube, runs_from, scatter
 
 pd = pytest.importorskip("pandas")
 
-FAST = dict(t_end=0.6, dt_out=0.01, rtol=1e-6, atol=1e-8, progress=False)
+FAST = dict(t_end=0.6, dt_out=0.01, solver="ida", rtol=1e-6, atol=1e-8, progress=False)
 OUTPUTS = SignalSummary(final=["J1.w", "J3.w"], peak=["clutch2.tau"])
 
 
@@ -97,7 +97,7 @@ def test_serial_process_and_dask_give_identical_tables():
     pd.testing.assert_frame_equal(_numbers(serial), _numbers(process), check_exact=True)
     pd.testing.assert_frame_equal(_numbers(serial), _numbers(dask), check_exact=True)
     # the table holds the simulation's numbers, not something else
-    res = coupled_clutches(**sample[0]).simulate(0.6, dt_out=0.01, rtol=1e-6, atol=1e-8)
+    res = coupled_clutches(**sample[0]).simulate(0.6, dt_out=0.01, rtol=1e-6, atol=1e-8, solver="ida")
     assert serial.loc[0, "J3.w.final"] == res.final("J3.w")
     assert serial.loc[0, "clutch2.tau.max_abs"] == np.max(np.abs(res["clutch2.tau"]))
 
@@ -179,7 +179,8 @@ STOP_AT: list = []
 def test_ctrl_c_returns_finished_rows_and_resume_completes(tmp_path):
     out = tmp_path / "study.csv"
     study = grid({"fn_max": [10.0, 20.0, 40.0], "t2": [0.3, 0.5]})
-    STOP_AT[:] = [coupled_clutches(**study[3]).simulate(0.6, dt_out=0.01, rtol=1e-6, atol=1e-8).final("J1.w")]
+    STOP_AT[:] = [coupled_clutches(**study[3]).simulate(0.6, dt_out=0.01, rtol=1e-6, atol=1e-8,
+                                                        solver="ida").final("J1.w")]
     with pytest.warns(RuntimeWarning, match="interrupted: 3 of 6"):
         part = rm.sweep(coupled_clutches, study, _interrupt_at_fourth, executor="serial", out=out, **FAST)
     assert part.attrs["interrupted"] and list(part["run_id"]) == [0, 1, 2]

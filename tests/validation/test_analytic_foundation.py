@@ -23,7 +23,7 @@ def two_inertias_on_shaft(J1=1.5, J2=0.5, c=200.0, T=3.0):
 
 def test_two_inertias_elastic_shaft_torque_step_analytic():
     J1, J2, c, T = 1.5, 0.5, 200.0, 3.0
-    res = two_inertias_on_shaft(J1, J2, c, T).simulate(2.0, dt_out=1e-3, rtol=1e-9, atol=1e-12)
+    res = two_inertias_on_shaft(J1, J2, c, T).simulate(2.0, dt_out=1e-3, rtol=1e-9, atol=1e-12, solver="ida")
     t = res.t
     om = np.sqrt(c * (1 / J1 + 1 / J2))
     rdot = -T / (J1 * om) * np.sin(om * t)          # r = phi2 - phi1
@@ -53,7 +53,7 @@ def test_rigid_shaft_and_gear_chain_index3_reduced_inertia():
     m.connect(g.flange_b, b.flange_a)
     m.connect(b.flange_b, s.flange_a)
     m.connect(s.flange_b, cc.flange_a)
-    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-9, atol=1e-12)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-9, atol=1e-12, solver="ida")
     t = res.t
     Jeq = J1 + (J2 + J3) / r**2                     # at J1
     a1 = T / Jeq
@@ -72,7 +72,7 @@ def test_rigid_shaft_and_gear_chain_index3_reduced_inertia():
 def test_msl_first_against_reference(reference_dir):
     from regmech.library import first
     ref = np.genfromtxt(reference_dir / "First.csv", delimiter=",", names=True)
-    res = first().simulate(1.0, dt_out=5e-4, rtol=1e-8)
+    res = first().simulate(1.0, dt_out=5e-4, rtol=1e-8, solver="ida")
     # Dymola's reference (DASSL, tol 1e-6) is itself ~2e-4 off in inertia3.w; the library tube is 2e-3
     for name, col, tol in (("inertia3.w", "inertia3w", 5e-4), ("inertia3.phi", "inertia3phi", 5e-5),
                            ("damper.w_rel", "damperw_rel", 1e-4), ("damper.phi_rel", "damperphi_rel", 1e-5)):
@@ -101,7 +101,7 @@ def damped_chain(n=4):
 
 def test_energy_balance_damped_chain():
     m = damped_chain()
-    res = m.simulate(2.0, dt_out=2e-4, rtol=1e-10, atol=1e-12)
+    res = m.simulate(2.0, dt_out=2e-4, rtol=1e-10, atol=1e-12, solver="ida")
     t = res.t
     work_in = simpson(-res["drive.power"], x=t)       # absorbed power of a source is minus its input
     kin = sum(res[f"J{i}.kinetic"] for i in range(4))
@@ -123,7 +123,7 @@ def test_translational_mass_spring_force_and_speed_source():
     m.connect(f.flange, k.flange_a)
     m.connect(k.flange_b, mass.flange_a)
     m.connect(push.flange, mass.flange_b)
-    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-10, atol=1e-12)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-10, atol=1e-12, solver="ida")
     om = np.sqrt(50.0 / 2.0)
     assert np.allclose(res["cart.s"], 10.0 / 50.0 * (1 - np.cos(om * res.t)), atol=1e-8)
     assert "k.f" in res and "cart.v" in res
@@ -135,7 +135,7 @@ def test_translational_mass_spring_force_and_speed_source():
     J = m2.add(Inertia("J", J=1.0, phi0=0.0, w0=0.0))
     m2.connect(sp.flange, k2.flange_a)
     m2.connect(k2.flange_b, J.flange_a)
-    r2 = m2.simulate(1.0, dt_out=1e-3, rtol=1e-9, atol=1e-12)
+    r2 = m2.simulate(1.0, dt_out=1e-3, rtol=1e-9, atol=1e-12, solver="ida")
     expected = np.where(r2.t < 0.5, 20.0 * r2.t, 10.0)
     assert np.allclose(r2["motor.w"], expected, atol=1e-9)
     assert np.allclose(r2["k.flange_a.w"], expected, atol=1e-9)
@@ -145,7 +145,7 @@ def test_translational_mass_spring_force_and_speed_source():
 def test_time_event_hits_step_exactly_and_result_io(tmp_path):
     m = two_inertias_on_shaft()
     m["drive"].tau = Step(height=3.0, start_time=0.3)
-    res = m.simulate(0.6, dt_out=0.07, rtol=1e-8)
+    res = m.simulate(0.6, dt_out=0.07, rtol=1e-8, solver="ida")
     k = np.nonzero(res.t == 0.3)[0]
     assert len(k) == 2 and res["drive.tau"][k[0]] == 0.0 and res["drive.tau"][k[1]] == 3.0
     assert res["J1.w"][k[0] - 1] == 0.0

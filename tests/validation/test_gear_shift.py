@@ -18,7 +18,7 @@ BACKWARD, STUCK, FORWARD, FREE = -1, 0, 1, 2
 def res():
     with warnings.catch_warnings():
         warnings.simplefilter("error")          # default IDA settings must run without any warning
-        return gear_shift().simulate(T_END, dt_out=1e-3)
+        return gear_shift().simulate(T_END, dt_out=1e-3, solver="ida")
 
 
 def events_of(res, name):

@@ -13,7 +13,7 @@ def _mode_changes(t, modes):
 
 @pytest.fixture(scope="module")
 def result():
-    return coupled_clutches().simulate(1.5, dt_out=5e-4, rtol=1e-8)
+    return coupled_clutches().simulate(1.5, dt_out=5e-4, rtol=1e-8, solver="ida")
 
 
 def test_same_mode_sequence_and_switch_times(result, reference_dir):

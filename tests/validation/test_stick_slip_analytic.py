@@ -25,7 +25,7 @@ def belt_oscillator(m=1.0, k=100.0, mu=0.3, peak=1.5, fn=10.0, v_belt=0.2):
 
 def test_belt_stick_slip_limit_cycle_phase_durations():
     m, k, mu, peak, fn, vb = 1.0, 100.0, 0.3, 1.5, 10.0, 0.2
-    res = belt_oscillator(m, k, mu, peak, fn, vb).simulate(3.0, dt_out=1e-3, rtol=1e-9)
+    res = belt_oscillator(m, k, mu, peak, fn, vb).simulate(3.0, dt_out=1e-3, rtol=1e-9, solver="ida")
     Fk, Fs = mu * fn, peak * mu * fn
     om = np.sqrt(k / m)
     xk, xb = Fk / k, Fs / k
@@ -63,7 +63,7 @@ def clutch_lockup(T=2.0, fn=5.0, mu=1.0, peak=1.2):
 
 def test_clutch_lock_time_holding_torque_and_slip_energy():
     T, tk = 2.0, 5.0
-    res = clutch_lockup(T=T, fn=tk).simulate(3.0, dt_out=1e-3, rtol=1e-9)
+    res = clutch_lockup(T=T, fn=tk).simulate(3.0, dt_out=1e-3, rtol=1e-9, solver="ida")
     # slipping: J1' = T - tk = -3, J2' = tk = 5 -> w_rel closes at 8 rad/s^2 from -10
     t_lock = 10.0 / 8.0
     ev = res.events
@@ -89,7 +89,7 @@ def test_brake_holds_without_drift_and_breaks_away_above_peak():
     b = m.add(Brake("brake", mu=0.5, peak=1.2, cgeo=1.0, fn_max=15.0))   # holds up to 9 N m
     m.connect(load.flange, J.flange_a)
     m.connect(J.flange_b, b.flange)
-    res = m.simulate(1.0, dt_out=1e-3, rtol=1e-9)
+    res = m.simulate(1.0, dt_out=1e-3, rtol=1e-9, solver="ida")
     assert [(e.old_mode, e.new_mode) for e in res.events] == [(0, 1)]
     assert res.events[0].t == pytest.approx(9.0 / 12.0, abs=1e-8)
     before = res.t < 0.75
@@ -114,7 +114,7 @@ def test_two_lockable_devices_on_one_rigid_group_hold_in_turn():
     # Rule ("holding in turn"): b1 (first in model order) holds alone while b2 is Held (mode 3,
     # no torque); past b1's static capacity 6 N m, b1 acts with its kinetic 5 N m at zero speed
     # and b2 holds the rest; the inertia breaks away at kinetic(b1) + static(b2) = 11 N m.
-    res = _double_brake(rm.signals.Ramp(height=15.0, duration=1.0)).simulate(1.0, dt_out=1e-3, rtol=1e-9)
+    res = _double_brake(rm.signals.Ramp(height=15.0, duration=1.0)).simulate(1.0, dt_out=1e-3, rtol=1e-9, solver="ida")
     changes = [(round(e.t, 6), e.component, e.old_mode, e.new_mode) for e in res.events]
     assert changes[:2] == [(0.4, "b1", 0, 1), (0.4, "b2", 3, 0)]
     assert str(res.events[1]) == "t=0.4: b2 Held -> Stuck"
@@ -134,7 +134,7 @@ def test_friction_never_drives_the_motion_it_holds_when_the_load_reverses():
     # load falls below b1's kinetic 5 N m, b1 sticks again (relief event) instead of pushing
     # against b2; the same in the reverse direction.
     load = rm.signals.Table([(0, 0), (1, 9), (2, -9), (3, 0)])
-    res = _double_brake(load).simulate(3.0, dt_out=1e-3, rtol=1e-9)
+    res = _double_brake(load).simulate(3.0, dt_out=1e-3, rtol=1e-9, solver="ida")
     assert np.abs(res["J.w"]).max() == 0.0
     assert np.allclose(res["b1.tau"] + res["b2.tau"], res["load.tau"], atol=1e-8)
     assert (res["b1.tau"] * res["b2.tau"]).min() > -1e-6          # never opposing each other
@@ -149,7 +149,7 @@ def test_friction_never_drives_the_motion_it_holds_when_the_load_reverses():
 def test_chattering_guard_names_device_time_and_remedy():
     from regmech.library import coupled_clutches
     with pytest.raises(rm.ChatteringError) as err:
-        coupled_clutches().simulate(1.5, dt_out=1e-3, rtol=1e-8, chatter_window=1.0, chatter_count=3)
+        coupled_clutches().simulate(1.5, dt_out=1e-3, rtol=1e-8, chatter_window=1.0, chatter_count=3, solver="ida")
     msg = str(err.value)
     assert "clutch1" in msg and "t=" in msg and "damping" in msg
 
@@ -179,7 +179,7 @@ def test_clutch_engaging_at_exactly_zero_relative_speed_sticks():
     # J2 gets a torque so that both have the same speed at 0.5
     d2 = m.add(Torque("drive2", tau=1.0))
     m.connect(d2.flange, J2.flange_b)
-    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-9)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-9, solver="ida")
     assert [(e.t, e.old_mode, e.new_mode) for e in res.events] == [(0.5, 2, 0)]
     assert np.allclose(res["J1.w"], res["J2.w"], atol=1e-12)
 
@@ -190,7 +190,7 @@ def test_bearing_friction_spins_down_and_stays_stopped():
     J = m.add(Inertia("J", J=0.5, phi0=0.0, w0=8.0))
     b = m.add(rm.components.BearingFriction("bearing", tau_table=[(0.0, 2.0), (100.0, 2.0)], peak=1.5))
     m.connect(J.flange_b, b.flange)
-    res = m.simulate(3.0, dt_out=1e-2, rtol=1e-9)
+    res = m.simulate(3.0, dt_out=1e-2, rtol=1e-9, solver="ida")
     assert [(e.old_mode, e.new_mode) for e in res.events] == [(1, 0)]
     assert res.events[0].t == pytest.approx(2.0, abs=1e-9)
     assert np.allclose(res["J.w"], np.maximum(8.0 - 4.0 * res.t, 0.0), atol=1e-9)

@@ -19,7 +19,7 @@ def single_wheel(T, mu, fn=4000.0, m_body=400.0):
 
 
 def test_wheel_grips_with_elastic_slip_only_and_balances_energy():
-    res = single_wheel(T=500.0, mu=0.9).simulate(2.0, dt_out=1e-3, rtol=1e-9)
+    res = single_wheel(T=500.0, mu=0.9).simulate(2.0, dt_out=1e-3, rtol=1e-9, solver="ida")
     assert np.all(res["wheel.road_contact.mode"] == 0)          # never slides
     # steady traction drives body + axle + the wheel's inertia; tread and contact patch sit at the
     # contact point, which stands still while the wheel rolls
@@ -38,7 +38,7 @@ def test_wheel_grips_with_elastic_slip_only_and_balances_energy():
 
 
 def test_wheel_spins_when_torque_exceeds_grip():
-    res = single_wheel(T=3000.0, mu=0.3).simulate(1.0, dt_out=1e-3, rtol=1e-8)
+    res = single_wheel(T=3000.0, mu=0.3).simulate(1.0, dt_out=1e-3, rtol=1e-8, solver="ida")
     ev = [e for e in res.events if e.component == "wheel.road_contact"]
     assert ev and ev[0].new_mode == 1
     sliding = res["wheel.road_contact.mode"] == 1
@@ -53,7 +53,7 @@ def test_magic_formula_wheel_force_follows_the_formula():
     body = m.add(Mass("body", m=500.0, v0=10.0))
     m.connect(drive.flange, w.hub)
     m.connect(w.axle, body.flange_a)
-    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-9)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-9, solver="ida")
     v, wr = res["body.v"], 0.3 * res["wheel.J.w"]
     kappa = (wr - v) / np.sqrt(v**2 + 0.5**2)
     bk = 10.0 * kappa
@@ -72,7 +72,7 @@ def test_subsystem_names_ports_and_errors():
 @pytest.mark.parametrize("mu, spins", [(0.9, False), (0.15, True)])
 def test_vehicle_launch_clutch_locks_and_wheels_slip_only_on_low_grip(mu, spins):
     from regmech.library import SCENES
-    res = SCENES["vehicle_launch"](mu_road=mu, clutch_fn_max=3000.0).simulate(3.0, dt_out=1e-2, rtol=1e-6)
+    res = SCENES["vehicle_launch"](mu_road=mu, clutch_fn_max=3000.0).simulate(3.0, dt_out=1e-2, rtol=1e-6, solver="ida")
     clutch = [(e.old_mode, e.new_mode) for e in res.events if e.component == "clutch"]
     assert clutch[0] == (2, -1) and (-1, 0) in clutch            # engages slipping, then locks
     slid = any(e.new_mode in (-1, 1) for e in res.events if "road_contact" in e.component)

@@ -1,9 +1,20 @@
-"""Solvers, all behind one calling convention: ``simulate(model, t_end, dt_out, solver, **options)``.
+"""Solvers, all behind one calling convention:
+``simulate(model, t_end, dt_out=None, solver="auto", *, accuracy=None, t_start=0.0, **options)``.
 
 Each returns a ``Result`` with the same named signals, events and stats.
 Each registers with the options it takes (``register(name, OptionSet)``);
 the time arguments and the options of every call are checked there, once
 for all solvers (``regmech.solvers.options``).
+
+* ``solver="auto"`` (the default) chooses the method and its settings from the
+  model's structure and the accuracy asked for (``regmech.solvers.auto``) and
+  runs it under the accuracy contract with ``accuracy`` (default
+  ``DEFAULT_ACCURACY`` = 1e-3);
+* a named solver with ``accuracy=None`` runs exactly as asked, with its own
+  options (``rtol``, ``h``, ...), and no extra runs;
+* a named solver with ``accuracy`` runs under the contract
+  (``regmech.solvers.accuracy``): the result's estimated global error is at
+  most ``accuracy`` or ``AccuracyError`` is raised.
 """
 
 from __future__ import annotations
@@ -74,18 +85,27 @@ def _load():
     from . import expm  # noqa: F401
 
 
-def simulate(model, t_end, dt_out=None, solver="ida", t_start=0.0, **options):
-    """Run ``model`` with the registered ``solver`` (see ``register`` for what is checked first)."""
+def simulate(model, t_end, dt_out=None, solver="auto", *, accuracy=None, t_start=0.0, **options):
+    """Run ``model`` with ``solver`` (see the module docstring; ``register`` for what is checked first)."""
     _load()
-    return _solver(solver)(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **options)
+    from .accuracy import check_accuracy, simulate_with_accuracy
+    if accuracy is not None:
+        accuracy = check_accuracy(accuracy)
+    if solver == "auto":
+        from .auto import simulate_auto
+        return simulate_auto(model, t_start, t_end, dt_out, accuracy, options)
+    fn = _solver(solver)
+    if accuracy is None:
+        return fn(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **options)
+    return simulate_with_accuracy(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
 
 
 def _solver(solver):
     fn = SOLVERS.get(solver) if isinstance(solver, str) else None
     if fn is None:
-        close = difflib.get_close_matches(str(solver), list(SOLVERS), n=1, cutoff=0.6)
+        close = difflib.get_close_matches(str(solver), list(SOLVERS) + ["auto"], n=1, cutoff=0.6)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise ParameterError(f"unknown solver {solver!r}{hint}; choose one of {sorted(SOLVERS)}")
+        raise ParameterError(f"unknown solver {solver!r}{hint}; choose 'auto' or one of {sorted(SOLVERS)}")
     return fn
 
 

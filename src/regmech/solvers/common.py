@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ..errors import ParameterError, SimulationError, SimulationTimeout
+from ..errors import AccuracyError, ParameterError, SimulationError, SimulationTimeout
 
 
 def check_times(t_start, t_end, dt_out):
@@ -176,6 +176,20 @@ STEP_CAP_REMEDIES = ("use an implicit solver ('ida', 'scipy:Radau', 'scipy:BDF' 
                      "rtol or shorten the run, or raise max_steps")
 
 
+#: check_link_spread refuses rtol below eps * (w_max / w_min)^2 / SPREAD_RTOL_FACTOR
+SPREAD_RTOL_FACTOR = 100.0
+
+
+def spread_rtol_floor(c):
+    """``(rtol_min, device, omega, ratio)``: the smallest rtol ``check_link_spread`` accepts, with the stiffest
+    link; None without links."""
+    link = c.fastest_link()
+    if link is None:
+        return None
+    dev, w, ratio = link
+    return float(np.finfo(float).eps * ratio ** 2 / SPREAD_RTOL_FACTOR), dev, w, ratio
+
+
 def check_link_spread(c, rtol, solver: str, stiff_check=True):
     """Refuse a tolerance that the link spread makes unreachable in double precision.
 
@@ -195,13 +209,16 @@ def check_link_spread(c, rtol, solver: str, stiff_check=True):
         return
     dev, w, ratio = link
     spread = ratio ** 2
-    if np.finfo(float).eps * spread > 100 * rtol:
-        raise SimulationError(
+    if np.finfo(float).eps * spread > SPREAD_RTOL_FACTOR * rtol:
+        # an accuracy that cannot be had, hence AccuracyError (a SimulationError): the contract of
+        # solvers.accuracy passes it on as the refusal of its accuracy
+        raise AccuracyError(
             f"solver '{solver}' on model '{c.model.name}': the stiffest link, {type(dev).__name__} '{dev.name}' "
             f"(local mode {w / 2 / np.pi:.3g} Hz), is {ratio:.3g} times faster than the softest; "
             f"the round-off of its force (eps * {spread:.3g} = {np.finfo(float).eps * spread:.2g} of the other "
             f"forces) exceeds what rtol={rtol:g} allows, so the answer cannot meet the tolerance. Make the link "
-            f"rigid (Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it; stiff_check=False runs it anyway.")
+            f"rigid (Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it; stiff_check=False runs it anyway.",
+            component=dev.name, estimate=float(np.finfo(float).eps * spread))
 
 
 class StepBudget:

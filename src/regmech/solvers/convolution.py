@@ -129,13 +129,15 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..errors import SimulationError
+from ..errors import ParameterError, SimulationError
 from . import register
 from .common import StepBudget, check_link_spread
 from .divergence import MAX_GROWTH
 from .ode_driver import EPS, KnotClock, Stepper, hermite, simulate_ode
-from .options import (Choice, Integer, OptionSet, atol_option, chatter_options, max_events_option, max_growth_option,
+from .options import (Choice, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
+                      max_growth_option,
                       rtol_option, step_option, stiff_check_option)
+from .richardson import simulate_fixed_step
 
 SERIES_BELOW = 0.5      # z below which phi1, phi2 come from their Taylor series
 _SERIES_TERMS = 16      # z^16/18! < 1e-20 at z = 0.5
@@ -278,7 +280,7 @@ class ConvolutionStepper(Stepper):
     FAILURE_WINDOW = 500
 
     def __init__(self, problem, t0, u0, t_bound, knots, rtol=1e-6, atol=1e-8, h=None, first_step=None,
-                 max_step=None, jac_every=None, corrector="implicit", budget=None):
+                 max_step=None, jac_every=None, corrector="implicit", budget=None, clock=KnotClock):
         self.problem = problem
         self.budget = budget                    # common.StepBudget of the run (adaptive steps only)
         self._phi_cache = (None, None, None)    # (h, rate array, phi_functions(h * rate))
@@ -303,7 +305,7 @@ class ConvolutionStepper(Stepper):
         self._crate = 0.7                      # Newton contraction estimate carried between steps (as LSODE)
         self._newton = None                    # (h, NewtonMatrix) for the current Jacobian
         self._refresh_rates()
-        self.clock = KnotClock(t0, knots, t_bound, h) if h is not None else None
+        self.clock = clock(t0, knots, t_bound, h) if h is not None else None
         if h is not None:
             self.h = h
         elif first_step is not None:
@@ -574,6 +576,8 @@ CONVOLUTION_OPTIONS = OptionSet(
     rtol=rtol_option(1e-6),
     atol=atol_option(lambda c: c.ode_size(), "state of the ODE form"),
     h=step_option("fixed step [s] (default: step control by rtol/atol)"),
+    tol=Real("with a fixed step h: bound of the Richardson estimate of the global error relative to the range of "
+             "each kind of state (default None: no estimate)", 0.0, 1.0, optional=True),
     first_step=step_option("first step [s] of the step control (default: estimated)"),
     max_step=step_option("largest step [s] of the step control (default: no limit)"),
     jac_every=Integer("accepted steps between Jacobian updates (default: only when needed)", 1, optional=True),
@@ -591,21 +595,39 @@ CONVOLUTION_OPTIONS = OptionSet(
 def simulate_convolution(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, h=None,
                          first_step=None, max_step=None, jac_every=None, corrector="implicit", max_events=100000,
                          chatter_window=None, chatter_count=50, max_growth=MAX_GROWTH, max_steps=DEFAULT_MAX_STEPS,
-                         stiff_check=True):
-    """The analytic-numerical convolution method (see regmech.solvers.convolution)."""
+                         stiff_check=True, tol=None):
+    """The analytic-numerical convolution method (see regmech.solvers.convolution).
+
+    With fixed steps (``h``), ``tol`` (default None: no estimate) bounds the Richardson estimate of the
+    global error (order 2, ``regmech.solvers.richardson``) as for the other fixed-step solvers.
+    """
+    if tol is not None and h is None:
+        raise ParameterError("solver 'convolution': tol (the Richardson estimate of fixed steps) needs a step h; "
+                             "with step control (no h) ask for accuracy=... instead")
     atol = rtol * 1e-2 if atol is None else atol
     budget = None if h is not None else StepBudget("convolution", max_steps, t_end)
     if h is None:
         check_link_spread(model.compile(), rtol, "convolution", stiff_check)
 
-    def make(problem, t0, u0, t_bound, knots):
-        fs = None if first_step is None else min(first_step, t_bound - t0)
-        return ConvolutionStepper(problem, t0, u0, t_bound, knots, rtol=rtol, atol=atol, h=h, first_step=fs,
-                                  max_step=max_step, jac_every=jac_every, corrector=corrector, budget=budget)
+    def stepper_factory(clock):
+        def make(problem, t0, u0, t_bound, knots):
+            fs = None if first_step is None else min(first_step, t_bound - t0)
+            return ConvolutionStepper(problem, t0, u0, t_bound, knots, rtol=rtol, atol=atol, h=h, first_step=fs,
+                                      max_step=max_step, jac_every=jac_every, corrector=corrector, budget=budget,
+                                      clock=clock)
+        return make
 
-    res = simulate_ode(model, "convolution", make, t_start, t_end, dt_out, max_events=max_events,
-                       chatter_window=chatter_window, chatter_count=chatter_count, max_growth=max_growth)
-    if h is not None:
-        res.stats.extra["h"] = float(h)
+    driver = dict(max_events=max_events, chatter_window=chatter_window, chatter_count=chatter_count,
+                  max_growth=max_growth)
+    if h is None:
+        res = simulate_ode(model, "convolution", stepper_factory(KnotClock), t_start, t_end, dt_out, **driver)
+    else:
+        def after_main(r):
+            r.stats.extra["h"] = float(h)
+
+        # order 2: the Adams pair behind the predictor-corrector (module docstring)
+        res = simulate_fixed_step(model, "convolution", lambda clock, companion: stepper_factory(clock),
+                                  h=float(h), order=2, tol=tol, t_start=t_start, t_end=t_end, dt_out=dt_out,
+                                  after_main=after_main, **driver)
     res.stats.extra["corrector"] = corrector
     return res

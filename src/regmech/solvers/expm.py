@@ -761,7 +761,7 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
     check_linear(c, t_start, t_end)
     floor = roundoff_floor(c)
     if tol is not None and floor is not None and floor[0] > tol:
-        raise AccuracyError(_floor_refusal(c, tol, *floor))
+        raise AccuracyError(_floor_refusal(c, tol, *floor), component=floor[1].name, estimate=floor[0], accuracy=tol)
     step = dt_out if h is None else h
     options = {"order_p": order_p, "taylor_r": taylor_r, "taylor_tol": float(taylor_tol), "sparse": sparse,
                "drop_tol": float(drop_tol), "t_end": float(t_end), "scaling": scaling}

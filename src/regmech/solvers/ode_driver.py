@@ -713,6 +713,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     extra["roughness"] = growth.largest_roughness
     stats.extra.update(extra)
     if rec is None:
+        stats.extra["event_list"] = events     # the companion's mode changes (compared by solvers.accuracy)
         return stats
     from ..compile.outputs import Trajectory
     T, Y, YP, L, MO = rec.arrays()

@@ -56,9 +56,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--zipped", action="store_true", help="take the k-th values of all --param lists together")
     p.add_argument("--t-end", type=float, required=True, help="simulation end time [s]")
     p.add_argument("--dt-out", type=float, default=None, help="output interval [s] (default: t_end/500)")
-    p.add_argument("--solver", default="ida", help="solver (default ida)")
-    p.add_argument("--rtol", type=float, default=None, help="relative tolerance")
-    p.add_argument("--atol", type=float, default=None, help="absolute tolerance")
+    p.add_argument("--solver", default="auto", help="solver (default auto: chosen from the model and --accuracy)")
+    p.add_argument("--accuracy", type=float, default=None,
+                   help="bound of the global error of every run (relative to the range of each kind of state "
+                        "signal; default 1e-3 with the auto solver, none with a named one)")
+    p.add_argument("--rtol", type=float, default=None, help="relative tolerance (of a named --solver)")
+    p.add_argument("--atol", type=float, default=None, help="absolute tolerance (of a named --solver)")
     p.add_argument("--output", action="append", default=None, metavar="SIGNAL",
                    help="report this signal's final value and peak instead of the defaults; repeat for more")
     p.add_argument("--out", required=True, help="result table (.csv, or .parquet with pyarrow)")
@@ -102,7 +105,8 @@ def _run(args) -> int:
     if not grid:
         raise ParameterError("give at least one --param NAME=v1,v2,...")
     outputs = SignalSummary(args.output) if args.output else scene_defaults(build())
-    options = {k: v for k, v in (("dt_out", args.dt_out), ("rtol", args.rtol), ("atol", args.atol)) if v is not None}
+    options = {k: v for k, v in (("dt_out", args.dt_out), ("rtol", args.rtol), ("atol", args.atol),
+                                 ("accuracy", args.accuracy)) if v is not None}
     table = sweep(build, grid, outputs, executor=args.executor, out=args.out, progress=not args.no_progress,
                   zipped=args.zipped, workers=args.workers, retry_failed=args.retry_failed,
                   timeout_s=args.timeout_s, t_end=args.t_end, solver=args.solver, **options)

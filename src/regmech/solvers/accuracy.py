@@ -1,0 +1,596 @@
+"""The accuracy contract: ``simulate(model, t_end, ..., accuracy=a)`` returns a run whose estimated global
+error is at most ``a``, or raises ``AccuracyError``.
+
+What is bounded. The *state signals* of the result: the position and the
+speed of every mass (``J.phi``, ``J.w``; ``m.s``, ``m.v``) and the internal
+states of devices, at the output instants. Each is measured against the
+largest range over the run of the signals of its *kind* (angles, angular
+speeds, positions, speeds, each kind of internal state), the measure of the
+fixed-step estimate (``richardson.kind_scales``, with its floors for a kind
+that does not move)::
+
+    estimate = max over signals i and output instants t of |e_i(t)| / range(kind of i)
+
+Signals that jump at a mode change (friction torques, accelerations) are
+not compared point by point: a switch-time error of 1e-9 s would show as an
+O(1) difference there. The switch times of the friction events are checked
+separately: the companion runs must take the same path through the modes
+(the same changes, device by device, in the same order), and each event of
+the result gets ``Event.t_error``, the difference of its switch time between
+the runs; ``stats.extra["event_time_error"]`` is the largest.
+
+How it is estimated, per family of solver:
+
+* **Adaptive solvers** (``ida``, ``scipy:*``, ``convolution`` without ``h``):
+  a pair of runs at ``rtol = r`` and ``r / TIGHTEN`` (atol scaled alike),
+  and the *tighter* one is returned, with the scaled maximum difference of
+  the pair as its estimate. Under tolerance proportionality (global error
+  ``~ C r^alpha`` with ``alpha`` near 1) the difference is about ``(1 -
+  TIGHTEN^-alpha)`` times the loose run's error, i.e. roughly
+  ``TIGHTEN^alpha - 1`` (9 for alpha = 1) times the returned run's: a
+  conservative bound, which stays a bound as long as tightening the
+  tolerance ten-fold at least halves the error. The first ``r`` is
+  ``accuracy * RTOL_FACTOR[solver]`` (measured, see BENCHMARKS.md,
+  calibration), or the user's ``rtol``; ``atol = ATOL_RATIO * r`` (or the
+  user's ratio), scaled down to the motion when its smallest range of a kind
+  is below ``ATOL_RESCALE`` (``motion_scale``: the first run is then
+  repeated with it; an atol made for a motion of 1 would hold a motion of
+  1e-5 to errors near atol). When the estimate exceeds the
+  accuracy, ``r`` is scaled by ``SAFETY * accuracy / estimate`` (when that
+  is no tighter than ``r / TIGHTEN``, the tight run becomes the loose run of
+  the next pair and only one new run is made), at most ``MAX_ATTEMPTS``
+  pairs.
+* **Fixed-step solvers** (``euler``, ``rk4``, ``abm``, ``expm``,
+  ``convolution`` with ``h``): their Richardson estimate
+  (``regmech.solvers.richardson``) held to ``accuracy / FIXED_STEP_MARGIN``
+  (an estimate against 2h is no bound where the error does not fall steadily
+  with h, e.g. around events; richardson also checks the order against a
+  run at 4h when the estimate passes only through the division by
+  ``2^p - 1``); without ``h`` a first step from the output interval and,
+  for the explicit methods, ``STABLE_FRACTION`` of their stability limit on
+  the fastest link; a refusal that suggests a step
+  (``AccuracyError.suggested_h``) is retried with it, at most
+  ``MAX_ATTEMPTS`` runs, and never beyond ``MAX_FIXED_STEPS`` steps.
+
+A run whose companion takes another path through the modes is retried
+tighter; if the paths still differ at the last attempt the run is refused
+naming the device. Both families share one more limit: the round-off of
+the stiffest link puts up to ``eps (w_max/w_min)^2`` of the range on any
+answer (``roundoff_bound``), the same in both runs of a pair, so no
+difference shows it: no estimate is reported below it, an accuracy below it
+is refused before any run, and the pair's rtol never goes below the limit
+of ``common.check_link_spread``. Every refusal names the worst signal (or
+the stiffest link), its component, the estimate, the instant and what would
+meet the accuracy.
+
+``stats`` of a run made with ``accuracy=``: ``error_estimate``; in
+``extra``: ``error_signal``, ``error_component``, ``error_t``,
+``accuracy``, ``attempts``, ``estimate_time`` (time of every run but the
+returned one), ``settings`` (rtol/atol or h the run ended with),
+``error_method``, ``error_floor`` (the round-off bound, with links),
+``event_time_error`` (with events); ``wall_time`` counts every run,
+``extra["wall_time_main"]`` the returned one alone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections import defaultdict
+
+import numpy as np
+
+from ..errors import AccuracyError, ParameterError, SimulationError
+from .common import check_times, output_grid, spread_rtol_floor
+from .richardson import StateLabel, kind_scales
+
+#: the accuracy of ``solver="auto"`` when none is given: 1e-3 of the range of the signals of a kind
+DEFAULT_ACCURACY = 1e-3
+#: loosest accuracy accepted (beyond it the estimate itself, a difference of two runs, means little)
+MAX_ACCURACY = 0.1
+#: pairs of runs (adaptive) or runs (fixed step) before a refusal
+MAX_ATTEMPTS = 3
+#: the tight run of a pair has ``rtol / TIGHTEN``
+TIGHTEN = 10.0
+#: a retry aims at this fraction of the accuracy
+SAFETY = 0.5
+#: no adaptive run below this rtol (double precision leaves nothing to gain; the solvers' own checks
+#: refuse much earlier on stretched spectra)
+RTOL_MIN = 1e-13
+#: a fixed-step run that would need more steps is refused instead of run (an hour of euler)
+MAX_FIXED_STEPS = 500_000
+#: solvers estimated by Richardson extrapolation of their fixed steps
+FIXED_STEP = ("euler", "rk4", "abm", "expm")
+#: the first rtol of the pair is ``accuracy * RTOL_FACTOR[solver]``: measured (calibration in BENCHMARKS.md)
+RTOL_FACTOR = {"ida": 0.03, "scipy:Radau": 0.5, "scipy:DOP853": 0.1, "scipy:RK45": 0.04, "scipy:RK23": 0.04,
+               "scipy:BDF": 0.01, "scipy:LSODA": 0.03, "convolution": 0.003}
+#: atol = ATOL_RATIO * rtol (the solvers' default) for a motion of magnitude 1 or more; for a smaller one
+#: (the smallest range of a kind of state signal that moves, ``motion_scale``, below ATOL_RESCALE after the
+#: first run) the pair is run with atol scaled down to it, but not below ATOL_SCALE_MIN times
+ATOL_RATIO = 1e-2
+ATOL_RESCALE = 0.1
+ATOL_SCALE_MIN = 1e-6
+#: the Richardson estimate of a fixed-step run must be below accuracy / FIXED_STEP_MARGIN: against a run at
+#: 2h it is no bound where the error does not fall steadily with h (events; measured: expm on OneWayClutch
+#: at h = 2 ms, estimate 3.8e-7, true 1.2e-6, while the run at 2h was nearer the truth)
+FIXED_STEP_MARGIN = 3.0
+#: first fixed step of an explicit method: this fraction of its stability limit on the fastest link (so that
+#: the companion at 2h is still at half the limit: at 0.5, rk4's 2h run sat on the limit and the estimate
+#: on stretched_1e3 was 6 times below the true error)
+STABLE_FRACTION = 0.25
+#: switch instants closer than this (relative to max(1, |t|)) are one change of a device (round-off pairs)
+SAME_INSTANT = 1e-9
+
+
+def check_accuracy(accuracy) -> float:
+    """``accuracy`` as a float in (0, MAX_ACCURACY]; ``ParameterError`` otherwise (numpy scalars accepted)."""
+    ok = isinstance(accuracy, (int, float, np.integer, np.floating)) and not isinstance(accuracy, (bool, np.bool_))
+    if ok:
+        value = float(accuracy)
+        if math.isfinite(value) and 0.0 < value <= MAX_ACCURACY:
+            return value
+    raise ParameterError(
+        f"simulate(): accuracy (the bound of the estimated global error of every state signal, relative to the "
+        f"range of the signals of its kind) must be a number in (0, {MAX_ACCURACY:g}], e.g. 1e-4; got "
+        f"{accuracy!r}")
+
+
+def is_fixed_step(solver: str, options: dict) -> bool:
+    return solver in FIXED_STEP or (solver == "convolution" and options.get("h") is not None)
+
+
+# ------------------------------------------------------------------------------ the measure
+def result_state_labels(c) -> list[StateLabel]:
+    """Signal, component and kind of every state signal of a result: position and speed of each mass (one
+    body per coordinate: bodies joined rigidly share it), then each internal state."""
+    st = c.structure
+    labels = []
+    for level in (0, 1):
+        for node in st.coord_node:
+            if node.bodies:
+                body = node.bodies[0]
+                var = body.var_names()[level]
+                labels.append(StateLabel(f"{body.name}.{var}", body.name, var))
+    for name in c.state_names:
+        comp, var = name.rsplit(".", 1)
+        labels.append(StateLabel(name, comp, f"state:{var}"))
+    return labels
+
+
+def grid_rows(t: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Index of each grid instant in a result's time axis: the last row at that instant (the right limit
+    after an event); every solver lands on the output instants."""
+    tol = 1e-11 * np.maximum(1.0, np.abs(grid))
+    k = np.searchsorted(t, grid + tol, side="right") - 1
+    return np.clip(k, 0, len(t) - 1)
+
+
+def state_matrix(res, labels, grid) -> np.ndarray:
+    """The state signals of ``res`` at the grid instants, one column per label."""
+    rows = grid_rows(np.asarray(res.t, float), grid)
+    if not labels:
+        return np.zeros((len(grid), 0))
+    return np.column_stack([np.asarray(res[lab.signal], float)[rows] for lab in labels])
+
+
+@dataclasses.dataclass
+class Estimate:
+    value: float            # max |a - b| / scale
+    signal: str
+    component: str
+    kind: str
+    t: float
+
+
+def compare_runs(a, b, labels, grid) -> Estimate:
+    """Scaled largest difference of the state signals of two results (scales from ``b``)."""
+    if not labels:
+        return Estimate(0.0, "", "", "", float(grid[-1]))
+    va, vb = state_matrix(a, labels, grid), state_matrix(b, labels, grid)
+    scales = kind_scales(labels, vb)
+    d = np.abs(va - vb) / scales
+    if not np.all(np.isfinite(d)):
+        bad = np.argwhere(~np.isfinite(d))[0]
+        lab = labels[int(bad[1])]
+        return Estimate(math.inf, lab.signal, lab.component, lab.kind, float(grid[int(bad[0])]))
+    k, i = np.unravel_index(int(np.argmax(d)), d.shape)
+    lab = labels[int(i)]
+    return Estimate(float(d[k, i]), lab.signal, lab.component, lab.kind, float(grid[k]))
+
+
+# ------------------------------------------------------------------------------ events
+def net_changes(events) -> list[tuple[float, str, int, int, list[int]]]:
+    """Mode changes ``(t, component, old, new, indices)`` with the changes of one device at one instant (to
+    ``SAME_INSTANT``) merged into one (a Free -> Forward -> Stuck pair 1e-15 s apart is one Free -> Stuck;
+    a change undone at once disappears); ``indices``: the events of the list merged into it."""
+    out: list = []
+    last: dict = {}
+    for i, ev in enumerate(events):
+        j = last.get(ev.component)
+        if j is not None and out[j] is not None:
+            t0, comp, old, new, idx = out[j]
+            if abs(ev.t - t0) <= SAME_INSTANT * max(1.0, abs(t0)):
+                out[j] = (t0, comp, old, ev.new_mode, idx + [i])
+                continue
+        last[ev.component] = len(out)
+        out.append((float(ev.t), ev.component, int(ev.old_mode), int(ev.new_mode), [i]))
+    return [e for e in out if e[2] != e[3]]
+
+
+@dataclasses.dataclass
+class EventMatch:
+    same_path: bool
+    t_error: list            # per event of ``b``: |t_a - t_b| of its match (None: merged away)
+    max_error: float | None
+    devices: list            # devices whose changes differ between the runs
+
+
+def match_events(events_a, events_b) -> EventMatch:
+    """Compare the mode changes of two runs, device by device (``net_changes``): the same sequence of
+    (old, new) per device is the same path, and the k-th changes of a device are matched."""
+    na, nb = net_changes(events_a), net_changes(events_b)
+    per_a, per_b = defaultdict(list), defaultdict(list)
+    for e in na:
+        per_a[e[1]].append(e)
+    for e in nb:
+        per_b[e[1]].append(e)
+    differ = sorted(comp for comp in set(per_a) | set(per_b)
+                    if [(e[2], e[3]) for e in per_a[comp]] != [(e[2], e[3]) for e in per_b[comp]])
+    t_error: list = [None] * len(events_b)
+    worst = None
+    if not differ:
+        for comp, seq_b in per_b.items():
+            for ea, eb in zip(per_a[comp], seq_b):
+                dt = abs(ea[0] - eb[0])
+                worst = dt if worst is None else max(worst, dt)
+                for i in eb[4]:
+                    t_error[i] = dt
+    return EventMatch(not differ, t_error, worst, differ)
+
+
+def _path_text(events, device, n=4) -> str:
+    from ..result import MODE_NAMES
+    seq = [e for e in net_changes(events) if e[1] == device]
+    shown = ", ".join(f"{MODE_NAMES.get(e[2], e[2])}->{MODE_NAMES.get(e[3], e[3])} at {e[0]:.6g} s" for e in seq[:n])
+    more = f" and {len(seq) - n} more" if len(seq) > n else ""
+    return f"{len(seq)} change(s): {shown or 'none'}{more}"
+
+
+# ------------------------------------------------------------------------------ the contract
+def simulate_with_accuracy(model, solver: str, fn, t_start, t_end, dt_out, accuracy: float, options: dict):
+    """Run ``solver`` (its registered function ``fn``) under the contract of the module docstring."""
+    t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    options = dict(options)
+    if "tol" in options:
+        raise ParameterError(f"solver '{solver}': give either accuracy= (the contract) or tol= (the bare "
+                             f"Richardson check of a fixed-step run), not both; accuracy sets tol")
+    tc = time.perf_counter()
+    c = model.compile()
+    compile_time = time.perf_counter() - tc
+    t0 = time.perf_counter()
+    floor = roundoff_bound(c)
+    if floor is not None and floor[0] > accuracy:
+        bound, dev, w, ratio = floor
+        raise AccuracyError(
+            f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}': the round-off of the stiffest "
+            f"link, {type(dev).__name__} '{dev.name}' (local mode {w / 2 / math.pi:.3g} Hz, {ratio:.3g} times "
+            f"faster than the softest), may put up to eps * {ratio:.3g}^2 = {bound:.2g} of the range on the answer "
+            f"whatever the solver and its settings, and no pair of runs can see it (both carry it). Make that link "
+            f"rigid (Shaft(stiffness=None)) or let rm.Scene(band_hz=...) do it, or ask for a looser accuracy.",
+            component=dev.name, estimate=bound, accuracy=accuracy)
+    if is_fixed_step(solver, options):
+        res = _fixed_step(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
+    else:
+        res = _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
+    total = time.perf_counter() - t0
+    st = res.stats
+    if floor is not None:
+        st.extra["error_floor"] = floor[0]
+        if st.error_estimate is not None and st.error_estimate < floor[0]:
+            st.error_estimate = floor[0]
+    main = st.extra.get("wall_time_main", st.wall_time)
+    st.extra["wall_time_main"] = main
+    st.extra["estimate_time"] = max(0.0, total - main)
+    st.wall_time = max(st.wall_time, total)
+    st.compile_time = max(st.compile_time, compile_time)
+    return res
+
+
+def roundoff_bound(c):
+    """``(bound, device, omega, ratio)``: the a-priori bound ``eps (w_max/w_min)^2`` of the error that the
+    round-off of the stiffest link puts on any answer (relative to the range; measured 0.01 to 0.25 of it on
+    the stretched chains of the hard cases, ``expm.roundoff_floor``), None without links. Two runs of a
+    pair share it, so their difference cannot show it: no estimate is reported below it."""
+    floor = spread_rtol_floor(c)
+    if floor is None:
+        return None
+    rmin, dev, w, ratio = floor
+    return float(np.finfo(float).eps * ratio ** 2), dev, w, ratio
+
+
+def _run_or_explain(fn, model, solver, accuracy, what, **kw):
+    """One run of the contract; a failure of a run the contract asked for says so (same error class)."""
+    try:
+        return fn(model, **kw)
+    except AccuracyError as exc:
+        fields = exc.fields()
+        fields["accuracy"] = accuracy
+        raise AccuracyError(f"accuracy {accuracy:g} with solver '{solver}': the run at rtol={kw.get('rtol', 0):.3g} "
+                            f"refused: {exc}", **fields) from exc
+    except SimulationError as exc:
+        if what is None:
+            raise
+        cls = type(exc)
+        try:
+            new = cls(f"accuracy {accuracy:g} with solver '{solver}': the run at {what} failed: {exc}")
+        except TypeError:       # pragma: no cover - an error class with another constructor
+            raise exc
+        raise new from exc
+
+
+def _settings_text(settings: dict) -> str:
+    return ", ".join(f"{k}={v:.3g}" for k, v in settings.items())
+
+
+def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
+    rtol0 = options.pop("rtol", None)
+    atol0 = options.pop("atol", None)
+    if rtol0 is not None and not (isinstance(rtol0, (int, float)) and not isinstance(rtol0, bool) and rtol0 > 0):
+        raise ParameterError(f"solver '{solver}': rtol must be a positive number, got {rtol0!r}")
+    r = float(rtol0) if rtol0 is not None else accuracy * RTOL_FACTOR.get(solver, 0.01)
+    c = model.compile()
+    # the stiffest link's round-off bounds the useful rtol (common.check_link_spread): the pair never goes
+    # below it; an accuracy that would need a tighter one is refused naming the link
+    floor = spread_rtol_floor(c) if options.get("stiff_check", True) else None
+    r_floor = floor[0] * 1.000001 if floor is not None else 0.0
+    r = max(r, TIGHTEN * r_floor)
+    bound = roundoff_bound(c)
+    round_off = bound[0] if bound is not None else 0.0
+    # atol follows rtol: the solvers' default ratio 1e-2, or the ratio the user gave
+    atol_ratio = ATOL_RATIO if atol0 is None else np.asarray(atol0, float) / r
+    labels = result_state_labels(c)
+    grid = output_grid(t_start, t_end, dt_out)
+
+    def run(rt, first=False):
+        at = atol_ratio * rt
+        at = float(at) if np.ndim(at) == 0 else at
+        what = None if first else f"rtol={rt:.3g} (the contract tightened it)"
+        return _run_or_explain(fn, model, solver, accuracy, what, t_start=t_start, t_end=t_end, dt_out=dt_out,
+                               rtol=rt, atol=at, **options)
+
+    loose = run(r, first=True)
+    if atol0 is None:
+        scale = motion_scale(loose, labels, grid)
+        if scale < ATOL_RESCALE:
+            # a small motion: the default atol (for a motion of about 1) would hold every state's error near
+            # atol, far above the accuracy relative to the motion; the pair is run with atol scaled to it
+            atol_ratio = ATOL_RATIO * scale
+            loose = run(r, first=True)
+    history = []
+    attempts = 0
+    while True:
+        attempts += 1
+        r_tight = r / TIGHTEN
+        if r_tight < max(RTOL_MIN, r_floor):
+            raise AccuracyError(_out_of_reach(solver, model, accuracy, history, r_tight, floor), accuracy=accuracy,
+                                **_worst_fields(history, floor))
+        tight = run(r_tight)
+        est = compare_runs(loose, tight, labels, grid)
+        if est.value < round_off:
+            est = dataclasses.replace(est, value=round_off)
+        ev = match_events(loose.events, tight.events)
+        history.append((r, est, ev))
+        if est.value <= accuracy and ev.same_path:
+            break
+        if attempts >= MAX_ATTEMPTS:
+            raise _adaptive_refusal(solver, model, accuracy, history, tight, loose)
+        if not ev.same_path or not math.isfinite(est.value) or est.value <= 0:
+            r_new = r_tight
+        else:
+            r_new = r * SAFETY * accuracy / est.value
+        if r_new / TIGHTEN < r_floor:
+            r_new = TIGHTEN * r_floor        # as tight as the link spread allows: the last pair that can be run
+            if r_new >= r:
+                raise AccuracyError(_out_of_reach(solver, model, accuracy, history, r_new / TIGHTEN, floor),
+                                    accuracy=accuracy, **_worst_fields(history, floor))
+        if r_new >= r_tight:
+            loose, r = tight, r_tight
+        else:
+            r = r_new
+            loose = run(r)
+    settings = {"rtol": r_tight}
+    at = atol_ratio * r_tight
+    settings["atol"] = float(at) if np.ndim(at) == 0 else float(np.max(at))
+    _record(tight, accuracy, est, attempts, settings,
+            f"difference from a run at rtol={r:.3g} ({TIGHTEN:g} times looser), a conservative bound under "
+            f"tolerance proportionality")
+    _record_events(tight, ev)
+    return tight
+
+
+def motion_scale(res, labels, grid) -> float:
+    """The smallest range over the run among the kinds of state signal that move (``ATOL_SCALE_MIN`` at
+    least, 1 at most): the magnitude the absolute tolerance of the contract's runs is scaled to."""
+    if not labels:
+        return 1.0
+    values = state_matrix(res, labels, grid)
+    rng = np.ptp(values, axis=0)
+    kinds: dict = {}
+    for i, lab in enumerate(labels):
+        kinds[lab.kind] = max(kinds.get(lab.kind, 0.0), float(rng[i]))
+    moving = [v for v in kinds.values() if v > 0 and math.isfinite(v)]
+    return float(np.clip(min(moving), ATOL_SCALE_MIN, 1.0)) if moving else 1.0
+
+
+def _record(res, accuracy, est: Estimate, attempts, settings, method):
+    st = res.stats
+    st.error_estimate = est.value
+    st.extra.update({"accuracy": accuracy, "error_signal": est.signal, "error_component": est.component,
+                     "error_t": est.t, "attempts": attempts, "settings": settings, "error_method": method})
+
+
+def _record_events(res, ev: EventMatch):
+    if not res.events:
+        return
+    res.events[:] = [dataclasses.replace(e, t_error=dt) if dt is not None else e
+                     for e, dt in zip(res.events, ev.t_error)]
+    res.stats.extra["event_time_error"] = ev.max_error
+
+
+def _worst_fields(history, floor=None) -> dict:
+    if not history:
+        return {"component": floor[1].name} if floor is not None else {}
+    est = history[-1][1]
+    return dict(signal=est.signal or None, component=est.component or None, estimate=est.value, t=est.t)
+
+
+def _out_of_reach(solver, model, accuracy, history, r_tight, floor=None) -> str:
+    tried = "; ".join(f"rtol {r:.2g}: estimate {e.value:.2g}" for r, e, _ in history) or "none"
+    worst = ""
+    if history and history[-1][1].signal:
+        est = history[-1][1]
+        worst = (f" The worst signal so far is {est.signal} of '{est.component}' (estimate {est.value:.2g} at "
+                 f"t = {est.t:.6g} s).")
+    if floor is not None and r_tight < floor[0] * 1.01:
+        rmin, dev, w, ratio = floor
+        return (f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}' would need rtol below "
+                f"{rmin:.2g}, where the round-off of the stiffest link, {type(dev).__name__} '{dev.name}' "
+                f"(local mode {w / 2 / math.pi:.3g} Hz, {ratio:.3g} times faster than the softest), swamps the "
+                f"answer (pairs so far: {tried}).{worst} Make that link rigid (Shaft(stiffness=None)) or let "
+                f"rm.Scene(band_hz=...) do it, or ask for a looser accuracy.")
+    return (f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}' would need rtol below "
+            f"{r_tight:.2g}, beyond what double precision resolves (pairs so far: {tried}).{worst} Ask for a "
+            f"looser accuracy, or use solver='expm' for a linear model.")
+
+
+def _adaptive_refusal(solver, model, accuracy, history, tight, loose) -> AccuracyError:
+    r, est, ev = history[-1]
+    tried = "; ".join(f"rtol {rr:.2g}/{rr / TIGHTEN:.2g}: {e.value:.2g}" + ("" if m.same_path else " (paths differ)")
+                      for rr, e, m in history)
+    if not ev.same_path:
+        dev = ev.devices[0]
+        text = (f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}': the mode changes of "
+                f"'{dev}' differ between the runs at rtol {r:.2g} ({_path_text(loose.events, dev)}) and "
+                f"{r / TIGHTEN:.2g} ({_path_text(tight.events, dev)}), even after {len(history)} tightenings: "
+                f"its switching is decided by differences near the round-off or by a grazing contact (a speed "
+                f"that just touches zero), so no tolerance settles it. Make the engagement decisive (a clear "
+                f"margin in the normal force or torque), or run a solver explicitly without accuracy= and judge "
+                f"the event yourself. (Pairs tried: {tried}.)")
+        return AccuracyError(text, component=dev, estimate=est.value, t=est.t, accuracy=accuracy,
+                             signal=f"{dev}.mode")
+    text = (f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}': estimated error "
+            f"{est.value:.2g} of {est.signal} of '{est.component}' (relative to the range of the {est.kind} "
+            f"signals, worst at t = {est.t:.6g} s) after {len(history)} pairs of runs ({tried}). "
+            f"{_remedy(model, solver, accuracy, history)}")
+    return AccuracyError(text, signal=est.signal, component=est.component, estimate=est.value, t=est.t,
+                         accuracy=accuracy)
+
+
+def _remedy(model, solver, accuracy, history) -> str:
+    """What would meet the accuracy, from how the estimate moved with the tolerance."""
+    c = model.compile()
+    vals = [e.value for _, e, _ in history]
+    shrinking = len(vals) >= 2 and vals[-1] < 0.5 * vals[0]
+    link = c.fastest_link()
+    stiff = ""
+    if link is not None and link[2] >= 1e3:
+        dev, w, ratio = link
+        stiff = (f" The stiffest link, {type(dev).__name__} '{dev.name}', is {ratio:.3g} times faster than the "
+                 f"softest: making it rigid (Shaft(stiffness=None)) or rm.Scene(band_hz=...) removes its "
+                 f"round-off, which may be what holds the estimate up.")
+    if shrinking:
+        return (f"The estimate shrinks with the tolerance, so a looser accuracy (about {vals[-1] * 2:.1g}) is "
+                f"within reach, or a higher-order solver (solver='scipy:DOP853' for small non-stiff models, "
+                f"'expm' for linear ones) reaches {accuracy:g} sooner.{stiff}")
+    return (f"The estimate does not shrink with the tolerance: {accuracy:g} is out of reach of '{solver}' on "
+            f"this model (round-off, or a discontinuity that is not declared as an event). Ask for a looser "
+            f"accuracy or try another solver ('expm' for a linear model, 'scipy:Radau').{stiff}")
+
+
+# ------------------------------------------------------------------------------ fixed steps
+def first_fixed_step(model, solver, t_start, t_end, dt_out) -> float:
+    """The first step of a contract run without ``h``: the output interval, and for an explicit method at
+    most ``STABLE_FRACTION`` of its stability limit on the fastest link (the error estimate then picks
+    the step that meets the accuracy)."""
+    from .explicit import ABMStepper, EulerStepper, RK4Stepper
+    bound = {"euler": EulerStepper, "rk4": RK4Stepper, "abm": ABMStepper}.get(solver)
+    h = float(dt_out)
+    if bound is not None:
+        link = model.compile().fastest_link()
+        if link is not None and link[1] > 0:
+            h = min(h, STABLE_FRACTION * bound.stability_bound / link[1])
+    return h
+
+
+def _fixed_step(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
+    h = options.pop("h", None)
+    if h is None:
+        h = first_fixed_step(model, solver, t_start, t_end, dt_out)
+    elif not (isinstance(h, (int, float)) and not isinstance(h, bool) and math.isfinite(h) and h > 0):
+        raise ParameterError(f"solver '{solver}': the step h must be a positive number [s], got {h!r}")
+    span = t_end - t_start
+    tried = []
+    attempt = 0
+    while True:
+        attempt += 1
+        steps = span / h
+        if steps > MAX_FIXED_STEPS:
+            fields = tried[-1][1].fields() if tried else {}
+            fields.update(accuracy=accuracy, suggested_h=h)
+            why = ""
+            if fields.get("signal"):
+                why = f" (worst signal {fields['signal']} of '{fields['component']}')"
+            else:
+                link = model.compile().fastest_link()
+                if link is not None:
+                    fields["component"] = link[0].name
+                    why = (f" (the stability limit on the fastest link, {type(link[0]).__name__} '{link[0].name}', "
+                           f"{link[1] / 2 / math.pi:.3g} Hz)")
+            raise AccuracyError(
+                f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}' needs a step of about "
+                f"{h:.3g} s{why}, {steps:.3g} steps for the run, more than {MAX_FIXED_STEPS:,} (steps tried: "
+                f"{_tried_text(tried)}). Use an adaptive solver ('ida', 'scipy:DOP853'), 'expm' for a linear "
+                f"model, or a looser accuracy.", **fields)
+        try:
+            res = fn(model, t_start=t_start, t_end=t_end, dt_out=dt_out, h=h, tol=accuracy / FIXED_STEP_MARGIN,
+                     **options)
+            companion = res.stats.extra.pop("companion_events", None)
+            ev = match_events(companion, res.events) if companion is not None else None
+            if ev is not None and not ev.same_path:
+                dev = ev.devices[0]
+                raise AccuracyError(
+                    f"accuracy {accuracy:g} with solver '{solver}' on model '{model.name}': the mode changes of "
+                    f"'{dev}' differ between the run at h = {h:.3g} s ({_path_text(res.events, dev)}) and its "
+                    f"companion ({_path_text(companion, dev)}): the steps do not resolve its switching. Use a "
+                    f"smaller step h or an adaptive solver ('ida', 'scipy:DOP853').", component=dev,
+                    signal=f"{dev}.mode", estimate=res.stats.error_estimate, accuracy=accuracy, suggested_h=h / 2)
+            break
+        except AccuracyError as exc:
+            tried.append((h, exc))
+            new_h = exc.suggested_h
+            if new_h is None or attempt >= MAX_ATTEMPTS:
+                fields = exc.fields()
+                fields["accuracy"] = accuracy
+                raise AccuracyError(
+                    f"accuracy {accuracy:g} with solver '{solver}' (its Richardson estimate held to "
+                    f"1/{FIXED_STEP_MARGIN:g} of it, tol = {accuracy / FIXED_STEP_MARGIN:.3g}; {attempt} run(s), "
+                    f"steps tried: {_tried_text(tried)}): {exc}", **fields) from exc
+            h = min(float(new_h), 0.9 * h)      # the suggestion is a bound; always make progress
+    st = res.stats
+    est = Estimate(float(st.error_estimate), st.extra.get("error_signal", ""), st.extra.get("error_component", ""),
+                   "", float(st.extra.get("error_t", float("nan"))))
+    _record(res, accuracy, est, attempt, {"h": float(st.extra.get("h", h))},
+            f"Richardson extrapolation against a run at {st.extra.get('error_companion', '2h')}")
+    if ev is not None:
+        _record_events(res, ev)
+    return res
+
+
+def _tried_text(tried) -> str:
+    return ", ".join(f"{h:.3g} s" + (f" (estimate {e.estimate:.2g})" if e.estimate is not None else "")
+                     for h, e in tried) or "none"
+
+
+__all__ = ["DEFAULT_ACCURACY", "check_accuracy", "simulate_with_accuracy", "compare_runs", "match_events",
+           "result_state_labels", "RTOL_FACTOR", "TIGHTEN", "MAX_ATTEMPTS"]

@@ -1,0 +1,241 @@
+"""``solver="auto"``: the method and its settings chosen from the model's structure and the accuracy asked for.
+
+The choice (``choose``) reads a few *traits* of the compiled model
+(``traits``), all cheap next to a run:
+
+* ``linear``: every device law linear with constant coefficients, friction
+  with a constant coefficient, no internal states (``expm.nonlinear_components``);
+* ``floor``: the a-priori round-off bound ``eps (w_max/w_min)^2`` of the
+  link spread (``accuracy.roundoff_bound``);
+* ``spread``: highest over lowest local link frequency
+  (``CompiledSystem.fastest_link``);
+* ``modes``: for a linear model of at most ``MODAL_MAX`` independent
+  coordinates, the damping ratio and frequency of every oscillating mode at
+  the start (the roots of ``lambda^2 M + lambda B + C``), those up to the
+  Nyquist frequency of the output grid;
+* ``expm_steps``: the steps ``expm`` takes (one per output interval and
+  breakpoint); ``states`` (ODE-form size) and ``friction`` (devices).
+
+What decides between a stepping method (``ida``) and the exact flow
+(``expm``) is how long the model oscillates: a stepping method must resolve
+every period of every mode that is still above the accuracy, ``expm``
+takes one step per output interval whatever the motion. A mode of damping
+ratio ``zeta`` and frequency ``f`` stays above ``a`` of its amplitude for
+``ln(1/a) / (2 pi zeta)`` periods, and the run holds ``span * f`` of them, so
+
+    periods(a) = max over the modes of min(span * f, ln(1/a) / (2 pi zeta)).
+
+The rules (measured, see BENCHMARKS.md, "Calibration of the accuracy
+contract", which lists the figures each comes from):
+
+1. linear, ``floor <= FLOOR_MARGIN * accuracy`` and ``expm_steps <=
+   EXPM_STEPS_PER_PERIOD * periods(accuracy)``: ``expm`` (an undamped or
+   lightly damped model over many periods always lands here: the exact flow
+   keeps its energy, where BDF's numerical damping lost 3.3e-2 of the
+   energy of a 20-inertia chain over 200 periods at its default settings);
+2. linear, floor as in 1, too large for the modal traits
+   (``states >= EXPM_STATES``): ``expm``, whose cost per step grows
+   about linearly with the size of a chain (sparse propagator);
+3. otherwise ``ida`` (the fastest solver under the contract on every
+   nonlinear case measured, stiff ones included), then ``scipy:Radau`` if
+   it refuses.
+
+When the first choice refuses (``AccuracyError`` or another
+``SimulationError``), the next candidate runs (``ida`` after ``expm``,
+``scipy:Radau`` after ``ida``); the result's ``stats.solver`` is the solver
+that produced it and ``stats.extra["auto_reason"]`` says why it was chosen
+(and what refused before). Options that set the tolerance or the step
+(``rtol``, ``atol``, ``h``, ``tol``) are refused under ``auto`` (the
+accuracy sets them: name the solver to set them yourself); other options go
+to the chosen solver, which must take them.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ParameterError, SimulationError
+from .accuracy import DEFAULT_ACCURACY, roundoff_bound, simulate_with_accuracy
+
+#: expm only when the round-off bound is at most this fraction of the accuracy
+FLOOR_MARGIN = 0.1
+#: expm when its steps are at most this many times the periods a stepping method must resolve
+EXPM_STEPS_PER_PERIOD = 20.0
+#: linear models of at least this many ODE states (too large for the modal traits) go to expm
+EXPM_STATES = 2 * 100
+#: damped modes computed for linear models up to this many independent coordinates
+MODAL_MAX = 100
+#: a mode with a damping ratio below this counts as lightly damped (in the reason only)
+ZETA_LIGHT = 0.02
+#: link spread from which a model counts as stiff (in the reason only)
+STIFF_SPREAD = 100.0
+#: options that set the tolerance or the step: the accuracy sets them under auto
+SETTINGS = ("rtol", "atol", "h", "tol")
+
+
+@dataclass
+class Traits:
+    linear: bool
+    nonlinear: list
+    floor: float
+    spread: float
+    modes: np.ndarray | None        # (k, 2): damping ratio, frequency [Hz] of the oscillating modes; None: unknown
+    span: float
+    expm_steps: int
+    states: int
+    friction: int
+    notes: list = field(default_factory=list)
+
+    def periods(self, accuracy: float) -> float:
+        """``periods(a)`` of the module docstring (0 without oscillating modes)."""
+        if self.modes is None or not len(self.modes):
+            return 0.0
+        zeta, f = self.modes[:, 0], self.modes[:, 1]
+        with np.errstate(divide="ignore"):
+            lasting = np.where(zeta > 0, math.log(1.0 / accuracy) / (2 * math.pi * np.maximum(zeta, 1e-300)), np.inf)
+        return float(np.max(np.minimum(self.span * f, lasting)))
+
+    def slowest_decay(self):
+        """(zeta, f) of the mode that sets ``periods`` at a tight accuracy: the least damped one."""
+        k = int(np.argmin(self.modes[:, 0] - 1e-12 * self.modes[:, 1]))
+        return float(self.modes[k, 0]), float(self.modes[k, 1])
+
+    def describe(self) -> str:
+        devices = f"{self.friction} friction device{'' if self.friction == 1 else 's'}"
+        parts = ["linear" if self.linear else f"nonlinear ({', '.join(self.nonlinear[:2])})",
+                 f"{self.states} states", devices, f"link spread {self.spread:.3g}"]
+        if self.modes is not None and len(self.modes):
+            parts.append(f"min damping ratio {float(np.min(self.modes[:, 0])):.2g}")
+        return ", ".join(parts)
+
+
+def traits(model, t_start: float, t_end: float, dt_out: float) -> Traits:
+    from .common import output_grid, signal_breakpoints
+    from .expm import nonlinear_components
+    c = model.compile()
+    bad = nonlinear_components(c, t_start, t_end)
+    linear = not bad and c.nz == 0
+    link = c.fastest_link()
+    spread = float(link[2]) if link is not None else 1.0
+    bound = roundoff_bound(c)
+    floor = bound[0] if bound is not None else 0.0
+    modes = _modes(c, t_start, 0.5 / dt_out) if linear else None
+    steps = len(output_grid(t_start, t_end, dt_out)) - 1 + len(signal_breakpoints(model, t_start, t_end))
+    return Traits(linear, bad, floor, spread, modes, t_end - t_start, steps, int(c.ode_size()), int(c.mf))
+
+
+def _modes(c, t_start, f_max):
+    """(damping ratio, frequency [Hz]) of the oscillating modes of a linear model at its start, up to ``f_max``;
+    None when the model is too large or the linear form cannot be had."""
+    from ..compile.linear import linearize
+    try:
+        lin = linearize(c, t=t_start)
+    except Exception:       # noqa: BLE001 - a model the linear form cannot hold simply gets no modal traits
+        return None
+    n = lin.M.shape[0]
+    if n == 0:
+        return np.zeros((0, 2))
+    if n > MODAL_MAX:
+        return None
+    M, B, C = (np.asarray(X.todense() if hasattr(X, "todense") else X, float) for X in (lin.M, lin.B, lin.C))
+    try:
+        Minv = np.linalg.inv(M)
+    except np.linalg.LinAlgError:
+        return None
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ C, -Minv @ B]])
+    with np.errstate(all="ignore"):
+        lam = np.linalg.eigvals(A)
+    if not np.all(np.isfinite(lam)):
+        return None
+    # oscillating: a complex pair whose frequency is not round-off of a rigid-body (zero) root
+    osc = lam[lam.imag > 1e-6 * float(np.max(np.abs(lam), initial=0.0))]
+    zeta = np.maximum(0.0, -osc.real / np.abs(osc))       # an undamped root's real part is round-off of either sign
+    f = osc.imag / (2 * math.pi)
+    keep = f <= f_max
+    return np.column_stack([zeta[keep], f[keep]])
+
+
+def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
+    """Candidates ``[(solver, reason), ...]`` in order (module docstring, rules 1-3)."""
+    out = []
+    expm_ok = tr.linear and tr.floor <= FLOOR_MARGIN * accuracy
+    periods = tr.periods(accuracy)
+    if expm_ok and tr.modes is not None and periods > 0 and tr.expm_steps <= EXPM_STEPS_PER_PERIOD * periods:
+        zeta, f = tr.slowest_decay()
+        kind = "lightly damped" if zeta < ZETA_LIGHT else "damped"
+        out.append(("expm", f"linear and oscillating over {periods:.3g} periods at accuracy {accuracy:g} ({kind}: "
+                            f"damping ratio {zeta:.2g} at {f:.3g} Hz): the exact flow takes {tr.expm_steps} output "
+                            f"steps and keeps amplitude and phase"))
+    elif expm_ok and tr.modes is None and tr.states >= EXPM_STATES:
+        out.append(("expm", f"linear with {tr.states} states: the matrix exponential's cost per output step grows "
+                            f"about linearly with a chain's size"))
+    why = "nonlinear" if not tr.linear else (
+        f"linear, oscillating over {periods:.3g} periods at accuracy {accuracy:g} against {tr.expm_steps} output "
+        f"steps" if periods > 0 else "linear without oscillating modes")
+    if tr.linear and not expm_ok:
+        why += f" (round-off bound {tr.floor:.2g} too close to the accuracy for expm)"
+    if tr.spread >= STIFF_SPREAD:
+        why += f", stiff (link spread {tr.spread:.3g})"
+    out.append(("ida", f"{why}: variable-order BDF with events located by root finding"))
+    if out[0][0] == "ida":
+        out.append(("scipy:Radau", "after ida refused: an implicit Runge-Kutta method"))
+    return out
+
+
+def _accepted(fn) -> set:
+    sig = inspect.signature(fn)
+    return {p.name for p in sig.parameters.values() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+
+
+def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
+    from . import SOLVERS
+    from .common import check_times
+    t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
+    given = [k for k in SETTINGS if k in options]
+    if given:
+        raise ParameterError(
+            f"simulate(): {', '.join(given)} set the tolerance or step of one solver, but solver='auto' chooses "
+            f"the solver and its settings from accuracy= (the bound of the global error, default "
+            f"{DEFAULT_ACCURACY:g}). Ask for accuracy=..., or name the solver to set them yourself, e.g. "
+            f"solver='ida', rtol=1e-8.")
+    if accuracy is None:
+        accuracy = DEFAULT_ACCURACY
+    model.compile()         # compiling is not part of the choice (nor of any run's wall time)
+    t0 = time.perf_counter()
+    tr = traits(model, t_start, t_end, dt_out)
+    candidates = choose(tr, accuracy)
+    analysis = time.perf_counter() - t0
+    refused = []
+    for i, (solver, reason) in enumerate(candidates):
+        fn = SOLVERS[solver]
+        unknown = sorted(set(options) - _accepted(fn))
+        if unknown:
+            raise ParameterError(f"simulate(): option(s) {unknown} are not options of '{solver}', which "
+                                 f"solver='auto' chose ({reason}); name the solver that takes them")
+        try:
+            res = simulate_with_accuracy(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
+        except SimulationError as exc:
+            refused.append((solver, exc))
+            if i + 1 < len(candidates):
+                continue
+            if len(refused) > 1:
+                first = refused[0]
+                raise type(exc)(f"{exc} (solver='auto' tried '{first[0]}' first, which refused: "
+                                f"{' '.join(str(first[1]).split())[:300]})",
+                                **(exc.fields() if hasattr(exc, "fields") else {})) from exc
+            raise
+        st = res.stats
+        elapsed = time.perf_counter() - t0
+        st.wall_time = max(st.wall_time, elapsed)
+        st.extra["estimate_time"] = max(0.0, elapsed - st.extra.get("wall_time_main", st.wall_time))
+        text = f"{solver}: {reason} ({tr.describe()})"
+        if refused:
+            text += "; " + "; ".join(f"'{s}' refused first: {' '.join(str(e).split())[:200]}" for s, e in refused)
+        st.extra.update(auto_reason=text, auto_time=analysis)
+        return res
+    raise AssertionError("unreachable")     # pragma: no cover - the list always ends with ida

@@ -1,0 +1,316 @@
+"""The accuracy contract (regmech.solvers.accuracy): simulate(..., accuracy=a) meets a against closed forms,
+or refuses with AccuracyError naming the signal/component; bounded retries; stats; no change without it."""
+
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+import regmech as rm
+from regmech.components import Clutch, Fixed, Inertia, Spring, SpringDamper, Torque
+from regmech.result import Event
+from regmech.solvers import SOLVERS, _load
+from regmech.solvers.accuracy import (DEFAULT_ACCURACY, MAX_ATTEMPTS, check_accuracy, match_events, net_changes,
+                                      simulate_with_accuracy)
+
+SOLVERS_UNDER_TEST = ["ida", "scipy:DOP853", "scipy:Radau", "rk4", "expm"]
+LEVELS = [1e-2, 1e-4, 1e-6]
+
+
+# ----------------------------------------------------------------------------- closed forms
+def damped_oscillator(c=40.0, d=0.4, J=1.0, phi0=1.0):
+    """J on a spring-damper to the ground, released from phi0 at rest."""
+    m = rm.Model("damped_oscillator")
+    fixed = m.add(Fixed("fixed"))
+    sd = m.add(SpringDamper("sd", c=c, d=d))
+    body = m.add(Inertia("J", J=J, phi0=phi0, w0=0.0))
+    m.connect(sd.flange_a, fixed.flange)
+    m.connect(sd.flange_b, body.flange_a)
+    wn = math.sqrt(c / J)
+    zeta = d / (2.0 * math.sqrt(c * J))
+    wd = wn * math.sqrt(1.0 - zeta ** 2)
+    s = zeta * wn
+
+    def exact(t):
+        e = np.exp(-s * t)
+        phi = phi0 * e * (np.cos(wd * t) + s / wd * np.sin(wd * t))
+        w = -phi0 * e * (wn ** 2 / wd) * np.sin(wd * t)
+        return {"J.phi": phi, "J.w": w}
+    return m, exact
+
+
+def two_inertias(J1=1.5, J2=0.5, c=200.0, T=3.0):
+    """Torque T on J1 from rest, J2 behind an elastic shaft c."""
+    m = rm.Model("two_inertias")
+    drive = m.add(Torque("drive", tau=T))
+    a = m.add(Inertia("J1", J=J1))
+    shaft = m.add(Spring("shaft", c=c))
+    b = m.add(Inertia("J2", J=J2))
+    m.connect(drive.flange, a.flange_a)
+    m.connect(a.flange_b, shaft.flange_a)
+    m.connect(shaft.flange_b, b.flange_a)
+    Js = J1 + J2
+    w = math.sqrt(c * Js / (J1 * J2))
+
+    def exact(t):
+        phic, wc = T * t ** 2 / (2 * Js), T * t / Js
+        x = T / (J1 * w ** 2) * (1 - np.cos(w * t))
+        xd = T / (J1 * w) * np.sin(w * t)
+        return {"J1.phi": phic + J2 / Js * x, "J2.phi": phic - J1 / Js * x,
+                "J1.w": wc + J2 / Js * xd, "J2.w": wc - J1 / Js * xd}
+    return m, exact
+
+
+def clutch_lockup(T=2.0, tk=5.0):
+    """J1 (10 rad/s, torque T) slips against J2 (at rest) through a clutch of kinetic torque tk; they lock at
+    t = 10/8 s (w_rel closes at (tk - (T - tk)) = 8 rad/s^2) and then turn together."""
+    m = rm.Model("lockup")
+    drive = m.add(Torque("drive", tau=T))
+    a = m.add(Inertia("J1", J=1.0, phi0=0.0, w0=10.0))
+    cl = m.add(Clutch("clutch", mu=1.0, peak=1.2, cgeo=1.0, fn_max=tk))
+    b = m.add(Inertia("J2", J=1.0, phi0=0.0, w0=0.0))
+    m.connect(drive.flange, a.flange_a)
+    m.connect(a.flange_b, cl.flange_a)
+    m.connect(cl.flange_b, b.flange_a)
+    tl = 10.0 / 8.0
+
+    def exact(t):
+        t = np.asarray(t, float)
+        before = t <= tl
+        w1 = np.where(before, 10.0 + (T - tk) * t, 0.0)
+        w2 = np.where(before, tk * t, 0.0)
+        p1 = np.where(before, 10.0 * t + 0.5 * (T - tk) * t ** 2, 0.0)
+        p2 = np.where(before, 0.5 * tk * t ** 2, 0.0)
+        wl, p1l, p2l = tk * tl, 10.0 * tl + 0.5 * (T - tk) * tl ** 2, 0.5 * tk * tl ** 2
+        dt = t - tl
+        after = ~before
+        w1 = np.where(after, wl + T / 2 * dt, w1)
+        w2 = np.where(after, wl + T / 2 * dt, w2)
+        p1 = np.where(after, p1l + wl * dt + T / 4 * dt ** 2, p1)
+        p2 = np.where(after, p2l + wl * dt + T / 4 * dt ** 2, p2)
+        return {"J1.w": w1, "J2.w": w2, "J1.phi": p1, "J2.phi": p2}
+    return m, exact, tl
+
+
+def achieved(res, exact) -> float:
+    """The contract's measure against the closed form: max over the result's rows and the state signals of
+    |error| / range of the exact signals of the same kind (phi, w)."""
+    ans = exact(res.t)
+    kinds = {}
+    for name, ref in ans.items():
+        kinds.setdefault(name.rsplit(".", 1)[1], []).append(name)
+    worst = 0.0
+    for names in kinds.values():
+        scale = max(float(np.ptp(ans[n])) for n in names)
+        for n in names:
+            worst = max(worst, float(np.max(np.abs(res[n] - ans[n]))) / scale)
+    return worst
+
+
+# ----------------------------------------------------------------------------- the contract met
+@pytest.mark.parametrize("solver", SOLVERS_UNDER_TEST)
+@pytest.mark.parametrize("accuracy", LEVELS)
+def test_damped_oscillator_meets_the_accuracy(solver, accuracy):
+    m, exact = damped_oscillator()
+    res = m.simulate(5.0, dt_out=0.01, solver=solver, accuracy=accuracy)
+    err = achieved(res, exact)
+    assert err <= accuracy, (solver, accuracy, err, res.stats.error_estimate)
+    assert res.stats.error_estimate <= accuracy
+    assert res.stats.solver == solver
+
+
+@pytest.mark.parametrize("solver", SOLVERS_UNDER_TEST)
+@pytest.mark.parametrize("accuracy", LEVELS)
+def test_two_inertias_on_a_shaft_meet_the_accuracy(solver, accuracy):
+    m, exact = two_inertias()
+    res = m.simulate(2.0, dt_out=0.01, solver=solver, accuracy=accuracy)
+    assert achieved(res, exact) <= accuracy
+
+
+@pytest.mark.parametrize("solver", ["ida", "scipy:DOP853", "scipy:Radau", "rk4"])
+@pytest.mark.parametrize("accuracy", [1e-4, 1e-6])
+def test_clutch_lockup_meets_the_accuracy_and_times_its_event(solver, accuracy):
+    m, exact, tl = clutch_lockup()
+    res = m.simulate(3.0, dt_out=0.01, solver=solver, accuracy=accuracy)
+    assert achieved(res, exact) <= accuracy
+    assert [(e.component, e.old_mode, e.new_mode) for e in res.events] == [("clutch", -1, 0)]
+    ev = res.events[0]
+    assert ev.t_error is not None and res.stats.extra["event_time_error"] == pytest.approx(ev.t_error)
+    assert abs(ev.t - tl) <= 0.01                 # within a few output intervals: the states carry the rest
+    assert "+-" in str(ev)
+
+
+def test_default_accuracy_of_the_default_call_on_a_closed_form():
+    m, exact = damped_oscillator()
+    res = m.simulate(5.0, dt_out=0.01)
+    assert res.stats.extra["accuracy"] == DEFAULT_ACCURACY
+    assert achieved(res, exact) <= DEFAULT_ACCURACY
+
+
+# ----------------------------------------------------------------------------- what a run says
+def test_stats_of_a_run_with_accuracy():
+    m, _ = damped_oscillator()
+    res = m.simulate(5.0, dt_out=0.01, solver="ida", accuracy=1e-5)
+    st = res.stats
+    x = st.extra
+    assert st.solver == "ida" and 0 < st.error_estimate <= 1e-5
+    assert x["accuracy"] == 1e-5 and x["error_signal"] in ("J.phi", "J.w") and x["error_component"] == "J"
+    assert 0.0 <= x["error_t"] <= 5.0 and 1 <= x["attempts"] <= MAX_ATTEMPTS
+    assert set(x["settings"]) == {"rtol", "atol"} and x["estimate_time"] >= 0.0
+    assert st.wall_time >= x["wall_time_main"]
+    text = str(st)
+    assert "accuracy 1e-05" in text and "rtol=" in text and x["error_signal"] in text
+    fixed = m.simulate(5.0, dt_out=0.01, solver="rk4", accuracy=1e-5)
+    assert set(fixed.stats.extra["settings"]) == {"h"} and fixed.stats.error_estimate <= 1e-5
+
+
+def test_explicit_solver_without_accuracy_is_unchanged(monkeypatch):
+    _load()
+    calls = []
+    original = SOLVERS["ida"]
+
+    def counted(model, **kw):
+        calls.append(kw)
+        return original(model, **kw)
+    monkeypatch.setitem(SOLVERS, "ida", counted)
+    m, _ = damped_oscillator()
+    res = m.simulate(5.0, dt_out=0.01, solver="ida", rtol=1e-7)
+    assert len(calls) == 1 and calls[0]["rtol"] == 1e-7 and "accuracy" not in calls[0]
+    assert res.stats.error_estimate is None and "accuracy" not in res.stats.extra
+    direct = original(damped_oscillator()[0], t_start=0.0, t_end=5.0, dt_out=0.01, rtol=1e-7)
+    assert np.array_equal(res["J.w"], direct["J.w"])
+
+
+def test_accuracy_is_validated():
+    m, _ = damped_oscillator()
+    for bad in (0, 0.0, -1e-3, 0.5, float("nan"), "1e-3", True, [1e-3]):
+        with pytest.raises(rm.ParameterError, match="accuracy"):
+            m.simulate(1.0, solver="ida", accuracy=bad)
+    assert check_accuracy(np.float64(1e-3)) == 1e-3 and check_accuracy(np.float32(0.05)) == pytest.approx(0.05)
+    assert check_accuracy(0.1) == 0.1
+    with pytest.raises(rm.ParameterError, match="tol"):
+        m.simulate(1.0, solver="rk4", accuracy=1e-3, tol=1e-3)
+
+
+# ----------------------------------------------------------------------------- refusals
+def test_unreachable_accuracy_on_the_stretched_chain_names_the_link():
+    """The stiffest link's round-off (up to eps (w_max/w_min)^2 = 3.7e-3 of the range here) is shared by both runs
+    of a pair, so no pair can see it: Radau at 1e-3 used to return an estimate of 1.1e-4 for a true 3.9e-4.
+    Accuracies below the bound are refused before any run, naming the link."""
+    from regmech.bench.hard_models import stretched_chain
+    chain, signal = stretched_chain(1e7)
+    for solver, acc in (("ida", 1e-6), ("expm", 1e-6), ("auto", 1e-6), ("scipy:Radau", 1e-3), ("rk4", 1e-3)):
+        with pytest.raises(rm.AccuracyError) as info:
+            chain.to_model(signal).simulate(10.0, dt_out=0.02, solver=solver, accuracy=acc)
+        exc = info.value
+        assert exc.component == "link5" and "'link5'" in str(exc) and exc.estimate > acc
+
+
+def test_adaptive_retries_are_bounded():
+    """A 'solver' whose runs never converge with the tolerance (it alternates between two fixed rtols):
+    at most MAX_ATTEMPTS pairs, then AccuracyError naming the worst signal."""
+    _load()
+    calls = []
+    ida = SOLVERS["ida"]
+
+    def stubborn(model, rtol, atol, **kw):
+        calls.append(rtol)
+        return ida(model, rtol=1e-3 if len(calls) % 2 else 1e-5, **kw)
+    m, _ = damped_oscillator()
+    with pytest.raises(rm.AccuracyError) as info:
+        simulate_with_accuracy(m, "stubborn", stubborn, 0.0, 5.0, 0.01, 1e-6, {})
+    assert len(calls) <= 2 * MAX_ATTEMPTS
+    assert info.value.signal in ("J.phi", "J.w") and info.value.component == "J"
+    assert info.value.estimate > 1e-6 and "'J'" in str(info.value)
+
+
+def test_fixed_step_retries_are_bounded_and_use_the_suggested_step():
+    _load()
+    steps = []
+    rk4 = SOLVERS["rk4"]
+
+    def counted(model, h, **kw):
+        steps.append(h)
+        return rk4(model, h=h, **kw)
+    m, _ = damped_oscillator()
+    res = simulate_with_accuracy(m, "rk4", counted, 0.0, 5.0, 0.05, 1e-7, {})
+    assert 1 <= len(steps) <= MAX_ATTEMPTS and res.stats.extra["attempts"] == len(steps)
+    assert steps == sorted(steps, reverse=True)       # each retry a smaller (suggested) step
+    steps.clear()
+    with pytest.raises(rm.AccuracyError) as info:
+        simulate_with_accuracy(m, "euler", SOLVERS["euler"], 0.0, 5.0, 0.05, 1e-7, {})
+    assert "euler" in str(info.value)
+
+
+def test_accuracy_error_keeps_its_fields_through_pickle():
+    exc = rm.AccuracyError("too coarse", signal="J.w", component="J", estimate=2e-3, t=0.5, accuracy=1e-3,
+                           suggested_h=1e-4)
+    back = pickle.loads(pickle.dumps(exc))
+    assert str(back) == "too coarse" and back.fields() == exc.fields()
+    with pytest.raises(TypeError):
+        rm.AccuracyError("x", no_such_field=1)
+
+
+# ----------------------------------------------------------------------------- events
+def test_event_paths_are_compared_device_by_device():
+    a = [Event(1.0, "c1", -1, 0), Event(2.0, "c2", 2, 1), Event(3.0, "c1", 0, -1)]
+    b = [Event(1.001, "c1", -1, 0), Event(2.0, "c2", 2, 1), Event(3.002, "c1", 0, -1)]
+    m = match_events(a, b)
+    assert m.same_path and m.max_error == pytest.approx(0.002) and m.t_error == pytest.approx([0.001, 0.0, 0.002])
+    # a round-off pair at one instant (Free -> Forward -> Stuck 1e-15 s apart) is one change
+    c = [Event(1.0, "c1", 2, 1), Event(1.0 + 1e-15, "c1", 1, 0)]
+    assert [(e[2], e[3]) for e in net_changes(c)] == [(2, 0)]
+    assert match_events(c, [Event(1.0, "c1", 2, 0)]).same_path
+    # a missed lock is another path, and the device is named
+    m = match_events(a, [Event(2.0, "c2", 2, 1)])
+    assert not m.same_path and m.devices == ["c1"]
+
+
+# ----------------------------------------------------------------------------- regressions found by the contract
+def test_a_long_step_does_not_skip_a_short_lock():
+    """DOP853 at rtol 3e-5 spanned the 40 ms lock of clutch1 (0.79-0.83 s) with one step and ended in the
+    same mode, so the lock was never seen (7 of 9 mode changes, 8e-3 of the range off): the event functions
+    are now sampled at the output instants inside a step too."""
+    from regmech.library import coupled_clutches
+    res = coupled_clutches().simulate(1.5, dt_out=1e-3, solver="scipy:DOP853", rtol=3e-5, atol=3e-7)
+    locks = [e.t for e in res.events if e.component == "clutch1" and e.new_mode == 0]
+    assert len(res.events) == 9 and any(abs(t - 0.7917) < 1e-3 for t in locks)
+
+
+def test_richardson_checks_the_order_it_relies_on():
+    """rk4 on the excavator (backlash contacts) at h = 2 ms: the estimate against 2h (9.5e-7) passed tol 1e-6
+    only through the division by 2^4 - 1, while the error fell like h^2.6 there and was 5.8e-6; the run at
+    4h now shows the order and the run is refused."""
+    from regmech.library import excavator_swing
+    with pytest.raises(rm.AccuracyError) as info:
+        excavator_swing().simulate(2.0, dt_out=2e-3, solver="rk4", h=2e-3, tol=1e-6)
+    assert info.value.suggested_h is not None and info.value.suggested_h < 2e-3
+
+
+# ----------------------------------------------------------------------------- threading: Scene, sweep
+def test_scene_accuracy_bounds_the_outputs_against_the_full_model():
+    from regmech.scene import REDUCTION_SHARE, SOLVER_SHARE
+    m, exact = two_inertias()
+    sc = rm.Scene(m, t_end=2.0, outputs=["J2.w"], accuracy=1e-3, dt_out=0.01)
+    res = sc.simulate()
+    assert res.stats.extra["accuracy"] == pytest.approx(SOLVER_SHARE * 1e-3)
+    assert achieved(res, exact) <= 1e-3
+    rep = sc.report(repeats=1)
+    assert rep.max_error <= REDUCTION_SHARE * 1e-3 and "simulations at 0.0001" in str(rep)
+    with pytest.raises(rm.ParameterError, match="accuracy"):
+        rm.Scene(m, t_end=2.0, outputs=["J2.w"], accuracy=0.5)
+
+
+def test_sweep_passes_the_accuracy_to_every_run():
+    def build(c=200.0):
+        return two_inertias(c=c)[0]
+    with pytest.warns(RuntimeWarning, match="all 2 runs failed"):
+        table = rm.sweep(build, {"c": [100.0, 200.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0,
+                         dt_out=0.01, accuracy=0.5)
+    status = list(table["status"]) if hasattr(table, "iloc") else table.column("status")
+    errors = list(table["error"]) if hasattr(table, "iloc") else table.column("error")
+    assert status == ["failed", "failed"] and all("accuracy" in e for e in errors)
+    table = rm.sweep(build, {"c": [100.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0, dt_out=0.01,
+                     accuracy=1e-4)
+    assert list(table["status"] if hasattr(table, "iloc") else table.column("status")) == ["ok"]

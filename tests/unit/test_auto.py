@@ -1,0 +1,103 @@
+"""solver="auto" (regmech.solvers.auto): the choice from the model's structure, its reason, the default call."""
+
+import math
+
+import numpy as np
+import pytest
+
+import regmech as rm
+from regmech.components import Fixed, Inertia, Spring
+from regmech.solvers import auto
+from regmech.solvers.accuracy import DEFAULT_ACCURACY
+
+
+def undamped_chain(n=20, c=100.0, J=1.0, phi0=0.1):
+    """n inertias on springs, the first one to the ground; the last one released from phi0."""
+    m = rm.Model(f"undamped_chain_{n}")
+    prev = m.add(Fixed("fixed")).flange
+    for k in range(n):
+        s = m.add(Spring(f"s{k}", c=c))
+        b = m.add(Inertia(f"J{k}", J=J, phi0=phi0 if k == n - 1 else 0.0))
+        m.connect(prev, s.flange_a)
+        m.connect(s.flange_b, b.flange_a)
+        prev = b.flange_b
+    # slowest mode of the fixed-free chain of equal masses and springs
+    w_min = 2.0 * math.sqrt(c / J) * math.sin(math.pi / (2 * (2 * n + 1)))
+    return m, w_min
+
+
+def energy(res, n):
+    return sum(res[f"J{k}.kinetic"] for k in range(n)) + sum(res[f"s{k}.potential"] for k in range(n))
+
+
+def test_undamped_chain_keeps_its_energy_under_the_default_call():
+    """The issue's case: BDF at its default settings lost 3.3e-2 of the energy over 200 slowest periods."""
+    m, w_min = undamped_chain()
+    res = m.simulate(200 * 2 * math.pi / w_min)
+    e = energy(res, 20)
+    assert np.max(np.abs(e / e[0] - 1.0)) <= 1e-4
+    assert res.stats.solver == "expm"
+    assert "lightly damped" in res.stats.extra["auto_reason"]
+    assert res.stats.extra["accuracy"] == DEFAULT_ACCURACY and res.stats.error_estimate <= DEFAULT_ACCURACY
+
+
+def test_the_choice_and_its_reason_are_recorded():
+    from regmech.library import coupled_clutches, train
+    res = coupled_clutches().simulate(1.5, dt_out=1e-3)
+    x = res.stats.extra
+    assert res.stats.solver in rm.solvers.SOLVERS and x["auto_reason"].startswith(res.stats.solver)
+    assert "3 friction devices" in x["auto_reason"] and x["auto_time"] >= 0.0
+    assert "[auto: " in str(res.stats)
+    big = train(60, c_r=0.0).simulate(5.0, dt_out=0.05)
+    assert big.stats.solver == "expm" and "linear" in big.stats.extra["auto_reason"]
+
+
+def test_a_nonlinear_model_never_goes_to_expm_and_a_stiff_one_never_to_an_explicit_method():
+    from regmech.bench.hard_models import near_rigid_chain
+    from regmech.library import vehicle_launch
+    tr = auto.traits(vehicle_launch(), 0.0, 3.0, 5e-3)
+    assert not tr.linear
+    for acc in (1e-2, 1e-4, 1e-6):
+        assert auto.choose(tr, acc)[0][0] != "expm"
+    chain, sig = near_rigid_chain()
+    tr = auto.traits(chain.to_model(sig), 0.0, 2.0, 4e-3)
+    assert tr.spread >= auto.STIFF_SPREAD
+    for acc in (1e-2, 1e-4, 1e-6):
+        assert auto.choose(tr, acc)[0][0] in ("ida", "expm", "scipy:Radau", "scipy:BDF", "scipy:LSODA")
+
+
+def test_settings_of_one_solver_are_refused_under_auto():
+    m, _ = undamped_chain(3)
+    for opt in ({"rtol": 1e-8}, {"atol": 1e-10}, {"h": 1e-3}, {"tol": 1e-4}):
+        with pytest.raises(rm.ParameterError, match="solver='auto'"):
+            m.simulate(1.0, **opt)
+    with pytest.raises(rm.ParameterError, match="not options of"):
+        m.simulate(1.0, linsolver="dense", order_p=2)
+
+
+def test_auto_falls_back_when_its_first_choice_refuses(monkeypatch):
+    from regmech.library import vehicle_launch
+    monkeypatch.setattr(auto, "choose", lambda tr, acc: [("expm", "forced for the test"), ("ida", "fallback")])
+    res = vehicle_launch().simulate(0.3, dt_out=5e-3)         # nonlinear: expm refuses, naming components
+    assert res.stats.solver == "ida" and "'expm' refused first" in res.stats.extra["auto_reason"]
+
+
+def test_periods_a_stepping_method_must_resolve():
+    """periods(a) = max over the modes of min(span f, ln(1/a) / (2 pi zeta))."""
+    tr = auto.Traits(True, [], 0.0, 1.0, np.array([[0.05, 10.0], [0.0, 0.1]]), 10.0, 500, 4, 0)
+    assert tr.periods(1e-4) == pytest.approx(math.log(1e4) / (2 * math.pi * 0.05))
+    tr.span = 1.0
+    assert tr.periods(1e-4) == pytest.approx(10.0)                     # the run ends first
+    tr.modes = np.zeros((0, 2))
+    assert tr.periods(1e-4) == 0.0 and auto.choose(tr, 1e-4)[0][0] == "ida"
+
+
+def test_choices_on_library_models():
+    from regmech.library import first, vehicle_launch
+    tr = auto.traits(first(), 0.0, 1.0, 1e-3)                          # 12 periods against 1000 output steps
+    assert [s for s, _ in auto.choose(tr, 1e-4)] == ["ida", "scipy:Radau"]
+    tr = auto.traits(vehicle_launch(), 0.0, 3.0, 5e-3)
+    assert not tr.linear and "nonlinear" in auto.choose(tr, 1e-3)[0][1]
+    m, w_min = undamped_chain(6)
+    tr = auto.traits(m, 0.0, 100 * 2 * math.pi / w_min, 1.0)
+    assert [s for s, _ in auto.choose(tr, 1e-3)] == ["expm", "ida"]
