@@ -84,10 +84,6 @@ def test_random_vehicles(rng):
     _check(rng, "vehicle")
 
 
-@pytest.mark.xfail(strict=True, reason="fuzz finding F3: prescribed motions that jump in speed (a Step or Pulse in a "
-                   "Speed reference, a corner or jump of a Position reference) are not refused up front; the "
-                   "ODE-form solvers and expm return answers whose energy books miss the impulse, ida stops "
-                   "with a generic error-test failure or returns a different answer")
 @_settings("rough")
 @given(rng=st.randoms(use_true_random=False))
 def test_random_rough_references_are_refused_or_consistent(rng):

@@ -95,7 +95,7 @@ class _Tampered:
 
 def test_energy_checks_pass_a_correct_run_and_catch_tampered_power():
     m = _damped_model()
-    res = m.simulate(2.0, dt_out=1e-3, rtol=1e-8)
+    res = m.simulate(2.0, dt_out=1e-3, rtol=1e-8, solver="ida")
     metrics = {}
     assert energy_checks(res, m, "ida", rel=1e-4, metrics=metrics) == []
     assert metrics["books"] < 1e-5 and metrics["loss"] >= 0.0
@@ -116,7 +116,7 @@ def test_energy_books_catch_a_jump_of_kinetic_energy_without_power():
     fixed = m.add(rm.components.Fixed("fixed"))
     m.connect(J.flange_a, d.flange_a)
     m.connect(d.flange_b, fixed.flange)
-    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-8)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-8, solver="ida")
     assert energy_checks(res, m, "ida") == []
     kinetic = np.where(res.t > 0.5, 0.01, 0.0)
     found = energy_checks(_Tampered(res, **{"J.kinetic": kinetic}), m, "ida")
@@ -125,7 +125,7 @@ def test_energy_books_catch_a_jump_of_kinetic_energy_without_power():
 
 def test_finite_check_names_the_signal():
     m = _damped_model()
-    res = m.simulate(0.5, dt_out=1e-2, rtol=1e-8)
+    res = m.simulate(0.5, dt_out=1e-2, rtol=1e-8, solver="ida")
     w = res["J.w"].copy()
     w[7] = math.nan
     found = finite_check(_Tampered(res, **{"J.w": w}), "ida")
@@ -135,8 +135,8 @@ def test_finite_check_names_the_signal():
 def test_agreement_flags_answers_further_apart_than_claimed():
     m = _damped_model()
     spec = ModelSpec("damped", [], 2.0, 1e-3, [])
-    loose = m.simulate(2.0, dt_out=1e-3, rtol=1e-3)
-    tight = m.simulate(2.0, dt_out=1e-3, rtol=1e-10)
+    loose = m.simulate(2.0, dt_out=1e-3, rtol=1e-3, solver="ida")
+    tight = m.simulate(2.0, dt_out=1e-3, rtol=1e-10, solver="ida")
     outs = [fuzz.RunOutcome("a", "ida", {}, "ok", claim_rel=1e-8), fuzz.RunOutcome("b", "ida", {}, "ok", claim_rel=1e-6)]
     found = agreement(outs, {"a": loose, "b": tight}, m, spec)
     assert [f.kind for f in found] == ["wrong-answer"] and "J." in found[0].detail

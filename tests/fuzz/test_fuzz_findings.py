@@ -29,10 +29,6 @@ def _lossy_gear_model(table, w0):
     return m
 
 
-@pytest.mark.xfail(strict=True, reason="fuzz finding F1 (seeds 22, 34, 44, 68, 89, 96, 111, 184, ...): the driving "
-                   "side of a LossyGear (and LossyPlanetary) is switched late, at the next time event, so its loss "
-                   "torque drives the motion in between; with a constant loss_table under the ODE-form solvers, with "
-                   "a speed-dependent one (threshold from the zero-speed bearing split) under ida too")
 @pytest.mark.parametrize("case", ["constant table, DOP853", "speed-dependent table, ida"])
 def test_lossy_gear_never_supplies_power(case):
     """Seed 34: flange_b drives (w_a = 3.75 rad/s, tau_a from -0.2 to -1.96 N m), yet under DOP853 the gear
@@ -77,9 +73,6 @@ def test_ode_form_solvers_find_friction_events_within_a_step(solver):
     assert err <= 1e-4 * np.ptp(ref["J3.phi"])
 
 
-@pytest.mark.xfail(strict=True, reason="fuzz finding F2 (seed 164): a holding torque that oscillates above the "
-                   "static capacity and back within one step of scipy:DOP853: the break-away and the re-stick are "
-                   "both missed")
 def test_dop853_finds_a_break_away_within_a_step():
     """An LSD whose clutch holds against a spring-damper swing: ida (and RK45, Radau, DOP853 at 1e-10) find six
     mode changes; DOP853 at rtol 1e-8 and 1e-6 finds four, and the side speed is off by 5e-4 of its range."""
@@ -124,17 +117,12 @@ def _speed_step_on_a_differential():
     return m
 
 
-@pytest.mark.xfail(strict=True, reason="fuzz finding F3 (seed 26; issue 13 item 10): a Step in a Speed reference "
-                   "is not refused; ida and scipy:DOP853 both return, with J3.w after the step -0.0019 and -0.29")
 @pytest.mark.parametrize("solver", ["ida", "scipy:DOP853"])
 def test_step_in_a_speed_reference_is_refused(solver):
     with pytest.raises(rm.RegmechError, match="motor"):
         _speed_step_on_a_differential().simulate(1.0, dt_out=1e-3, solver=solver, rtol=1e-10)
 
 
-@pytest.mark.xfail(strict=True, reason="fuzz finding F3 (seed 57): a corner of a Position reference (Ramp) makes "
-                   "the speed jump; scipy:DOP853 and expm return with a kinetic-energy jump that no power "
-                   "signal accounts for (ida fails at the corner with a generic error-test message)")
 @pytest.mark.parametrize("solver", ["scipy:DOP853", "expm"])
 def test_corner_in_a_position_reference_is_refused_or_accounted(solver):
     m = rm.Model("position_corner")

@@ -62,7 +62,7 @@ def test_every_solver_stops_at_its_time_limit(solver, options):
 def test_ida_stops_a_run_that_is_merely_long():
     # 1e4 s of a 1.6 Hz oscillation at rtol 1e-10: millions of steps, no slow user code involved
     with pytest.raises(rm.SimulationTimeout, match=r"timed out after 0\.5 s.*of t_end=10000 s"):
-        _spring().simulate(t_end=1e4, dt_out=0.1, rtol=1e-10, timeout_s=0.5)
+        _spring().simulate(t_end=1e4, dt_out=0.1, rtol=1e-10, timeout_s=0.5, solver="ida")
 
 
 @pytest.mark.parametrize("solver, options", [("ida", {}), ("rk4", {"h": 1e-3}), ("scipy:DOP853", {})])
@@ -106,7 +106,7 @@ def _check_one_timed_out(table, timeout=TIMEOUT):
 @pytest.mark.parametrize("executor", ["serial", "process", "dask", "threads"])
 def test_a_hanging_run_becomes_a_failed_row_and_the_study_goes_on(executor):
     _spring().simulate(t_end=1.0)           # kernel templates warm here (forked workers inherit them)
-    options = dict(progress=False, t_end=1.0, timeout_s=TIMEOUT)
+    options = dict(progress=False, t_end=1.0, timeout_s=TIMEOUT, solver="ida")
     if executor == "dask":
         distributed = pytest.importorskip("dask.distributed")
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,

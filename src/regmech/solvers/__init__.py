@@ -88,6 +88,12 @@ def _load():
 def simulate(model, t_end, dt_out=None, solver="auto", *, accuracy=None, t_start=0.0, **options):
     """Run ``model`` with ``solver`` (see the module docstring; ``register`` for what is checked first)."""
     _load()
+    # one wall-clock limit over everything the call runs (auto's choice, the contract's companion runs)
+    with time_limit(options.pop("timeout_s", None)):
+        return _simulate(model, t_end, dt_out, solver, accuracy, t_start, options)
+
+
+def _simulate(model, t_end, dt_out, solver, accuracy, t_start, options):
     from .accuracy import check_accuracy, simulate_with_accuracy
     if accuracy is not None:
         accuracy = check_accuracy(accuracy)
@@ -109,19 +115,30 @@ def _solver(solver):
     return fn
 
 
-def check_options(t_end, dt_out=None, solver="ida", t_start=0.0, max_points=MAX_POINTS, **options) -> dict:
+def check_options(t_end, dt_out=None, solver="auto", t_start=0.0, max_points=MAX_POINTS, **options) -> dict:
     """Check the arguments of ``simulate`` without a model (what needs the compiled model is checked when it
     runs); returns them normalised. ``rm.sweep`` and the command line call it before starting any run, so a
     misspelt option stops a study at once instead of failing every run of it."""
     _load()
-    fn = _solver(solver)
     t_start, t_end, dt_out, max_points = check_times(t_start, t_end, dt_out, max_points)
     out = {"t_end": t_end, "dt_out": dt_out, "solver": solver, "t_start": t_start, "max_points": max_points}
+    if options.get("accuracy") is not None:
+        from .accuracy import check_accuracy
+        out["accuracy"] = check_accuracy(options.pop("accuracy"))
+    options.pop("accuracy", None)
     if "max_time_events" in options:
         out["max_time_events"] = check_max_time_events(options.pop("max_time_events"))
     if "timeout_s" in options:
         out["timeout_s"] = check_timeout(options.pop("timeout_s"), "simulate(timeout_s=...)")
-    return {**out, **fn.options.check(solver, options)}
+    if solver == "auto":
+        # the solver's own options are checked against the one auto chooses, when the model is known
+        from .auto import SETTINGS
+        given = [k for k in SETTINGS if k in options]
+        if given:
+            raise ParameterError(f"simulate(): {', '.join(given)} set the tolerance or step of one solver, but "
+                                 f"solver='auto' chooses them from accuracy=; name the solver to set them")
+        return {**out, **options}
+    return {**out, **_solver(solver).options.check(solver, options)}
 
 
 __all__ = ["simulate", "check_options", "SOLVERS", "register", "TIME_ARGUMENTS"]

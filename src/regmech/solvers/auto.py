@@ -189,7 +189,9 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
 
 def _accepted(fn) -> set:
     sig = inspect.signature(fn)
-    return {p.name for p in sig.parameters.values() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    from .options import TIME_ARGUMENTS      # taken by every registered solver (max_points, timeout_s, ...)
+    return {p.name for p in sig.parameters.values()
+            if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)} | set(TIME_ARGUMENTS)
 
 
 def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
