@@ -85,17 +85,18 @@ def test_auto_falls_back_when_its_first_choice_refuses(monkeypatch):
 def test_periods_a_stepping_method_must_resolve():
     """periods(a) = max over the modes of min(span f, ln(1/a) / (2 pi zeta))."""
     tr = auto.Traits(True, [], 0.0, 1.0, np.array([[0.05, 10.0], [0.0, 0.1]]), 10.0, 500, 4, 0)
+    assert tr.modes.shape == (2, 2)
     assert tr.periods(1e-4) == pytest.approx(math.log(1e4) / (2 * math.pi * 0.05))
     tr.span = 1.0
     assert tr.periods(1e-4) == pytest.approx(10.0)                     # the run ends first
-    tr.modes = np.zeros((0, 2))
+    tr = auto.Traits(True, [], 0.0, 1.0, np.zeros((0, 2)), 1.0, 500, 4, 0)
     assert tr.periods(1e-4) == 0.0 and auto.choose(tr, 1e-4)[0][0] == "ida"
 
 
 def test_choices_on_library_models():
     from regmech.library import first, vehicle_launch
     tr = auto.traits(first(), 0.0, 1.0, 1e-3)                          # 12 periods against 1000 output steps
-    assert [s for s, _ in auto.choose(tr, 1e-4)] == ["ida", "scipy:Radau"]
+    assert [s for s, _ in auto.choose(tr, 1e-4)] == ["ida", "expm", "scipy:Radau"]
     tr = auto.traits(vehicle_launch(), 0.0, 3.0, 5e-3)
     assert not tr.linear and "nonlinear" in auto.choose(tr, 1e-3)[0][1]
     m, w_min = undamped_chain(6)

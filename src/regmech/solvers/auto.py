@@ -28,21 +28,29 @@ ratio ``zeta`` and frequency ``f`` stays above ``a`` of its amplitude for
 The rules (measured, see BENCHMARKS.md, "Calibration of the accuracy
 contract", which lists the figures each comes from):
 
-1. linear, ``floor <= FLOOR_MARGIN * accuracy`` and ``expm_steps <=
-   EXPM_STEPS_PER_PERIOD * periods(accuracy)``: ``expm`` (an undamped or
-   lightly damped model over many periods always lands here: the exact flow
-   keeps its energy, where BDF's numerical damping lost 3.3e-2 of the
-   energy of a 20-inertia chain over 200 periods at its default settings);
-2. linear, floor as in 1, too large for the modal traits
-   (``states >= EXPM_STATES``): ``expm``, whose cost per step grows
-   about linearly with the size of a chain (sparse propagator);
-3. otherwise ``ida`` (the fastest solver under the contract on every
-   nonlinear case measured, stiff ones included), then ``scipy:Radau`` if
-   it refuses.
+``expm`` is a candidate only for a linear model whose round-off bound is
+within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
+``FLOOR_MARGIN`` = 1/3, the contract's ``FIXED_STEP_MARGIN``). Then:
+
+1. ``expm_steps <= K(accuracy) * periods(accuracy)`` with ``K(a) =
+   EXPM_STEPS_PER_PERIOD + EXPM_STEPS_PER_DECADE * log10(1/a)`` (a stepping
+   method takes more steps per period the tighter the accuracy): ``expm``
+   (an undamped or lightly damped model over many periods always lands
+   here: the exact flow keeps its energy, where BDF's numerical damping
+   lost 3.3e-2 of the energy of a 20-inertia chain over 200 periods at its
+   default settings);
+2. ``floor > accuracy * NEAR_ROUNDOFF``: ``expm``, since a stepping method
+   would need an rtol near the limit the link spread sets
+   (``common.check_link_spread``; ida refused inertia_ratio_1e8 at 1e-6);
+3. too large for the modal traits (``states >= EXPM_STATES``): ``expm``,
+   whose cost per step grows about linearly with the size of a chain
+   (sparse propagator);
+4. otherwise ``ida`` (the fastest solver under the contract on every
+   nonlinear case measured, stiff ones included).
 
 When the first choice refuses (``AccuracyError`` or another
-``SimulationError``), the next candidate runs (``ida`` after ``expm``,
-``scipy:Radau`` after ``ida``); the result's ``stats.solver`` is the solver
+``SimulationError``), the next candidate runs: ``ida`` after ``expm``;
+``expm`` (when a candidate) and then ``scipy:Radau`` after ``ida``. The result's ``stats.solver`` is the solver
 that produced it and ``stats.extra["auto_reason"]`` says why it was chosen
 (and what refused before). Options that set the tolerance or the step
 (``rtol``, ``atol``, ``h``, ``tol``) are refused under ``auto`` (the
@@ -62,10 +70,13 @@ import numpy as np
 from ..errors import ParameterError, SimulationError
 from .accuracy import DEFAULT_ACCURACY, roundoff_bound, simulate_with_accuracy
 
-#: expm only when the round-off bound is at most this fraction of the accuracy
-FLOOR_MARGIN = 0.1
+#: expm only when the round-off bound is at most this fraction of the accuracy (its estimate is held to it)
+FLOOR_MARGIN = 1.0 / 3.0
+#: ... and chosen first when the bound is above this fraction (a stepping method would need rtol near its limit)
+NEAR_ROUNDOFF = 1e-2
 #: expm when its steps are at most this many times the periods a stepping method must resolve
-EXPM_STEPS_PER_PERIOD = 20.0
+EXPM_STEPS_PER_PERIOD = 4.0
+EXPM_STEPS_PER_DECADE = 2.0
 #: linear models of at least this many ODE states (too large for the modal traits) go to expm
 EXPM_STATES = 2 * 100
 #: damped modes computed for linear models up to this many independent coordinates
@@ -84,12 +95,24 @@ class Traits:
     nonlinear: list
     floor: float
     spread: float
-    modes: np.ndarray | None        # (k, 2): damping ratio, frequency [Hz] of the oscillating modes; None: unknown
+    modes_of: object                # () -> (k, 2) array: damping ratio, frequency [Hz]; None: unknown (lazy)
     span: float
     expm_steps: int
     states: int
     friction: int
-    notes: list = field(default_factory=list)
+    f_bound: float = math.inf       # an upper bound of the frequencies that count [Hz]
+    _modes: object = field(default=False, repr=False)
+
+    @property
+    def modes(self):
+        """The oscillating modes (computed on first use: the choice needs them only for some models)."""
+        if self._modes is False:
+            self._modes = self.modes_of() if callable(self.modes_of) else self.modes_of
+        return self._modes
+
+    def periods_bound(self) -> float:
+        """An upper bound of ``periods(a)`` for any a, without the modes: span times the frequency bound."""
+        return self.span * self.f_bound
 
     def periods(self, accuracy: float) -> float:
         """``periods(a)`` of the module docstring (0 without oscillating modes)."""
@@ -124,9 +147,19 @@ def traits(model, t_start: float, t_end: float, dt_out: float) -> Traits:
     spread = float(link[2]) if link is not None else 1.0
     bound = roundoff_bound(c)
     floor = bound[0] if bound is not None else 0.0
-    modes = _modes(c, t_start, 0.5 / dt_out) if linear else None
+    f_nyquist = 0.5 / dt_out
+    if not linear:
+        modes_of, f_bound = None, math.inf
+    elif link is None:      # no spring: nothing oscillates
+        modes_of, f_bound = np.zeros((0, 2)), 0.0
+    else:
+        def modes_of():
+            return _modes(c, t_start, f_nyquist)
+        # the highest natural frequency is below about twice the fastest link's local one (Gershgorin)
+        f_bound = min(f_nyquist, 2.0 * link[1] / (2 * math.pi))
     steps = len(output_grid(t_start, t_end, dt_out)) - 1 + len(signal_breakpoints(model, t_start, t_end))
-    return Traits(linear, bad, floor, spread, modes, t_end - t_start, steps, int(c.ode_size()), int(c.mf))
+    return Traits(linear, bad, floor, spread, modes_of, t_end - t_start, steps, int(c.ode_size()), int(c.mf),
+                  f_bound=f_bound)
 
 
 def _modes(c, t_start, f_max):
@@ -160,18 +193,29 @@ def _modes(c, t_start, f_max):
     return np.column_stack([zeta[keep], f[keep]])
 
 
+def steps_per_period(accuracy: float) -> float:
+    """``K(a)``: expm's output steps per period a stepping method must resolve, at which the two cost alike."""
+    return EXPM_STEPS_PER_PERIOD + EXPM_STEPS_PER_DECADE * math.log10(1.0 / accuracy)
+
+
 def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     """Candidates ``[(solver, reason), ...]`` in order (module docstring, rules 1-3)."""
     out = []
     expm_ok = tr.linear and tr.floor <= FLOOR_MARGIN * accuracy
-    periods = tr.periods(accuracy)
-    if expm_ok and tr.modes is not None and periods > 0 and tr.expm_steps <= EXPM_STEPS_PER_PERIOD * periods:
+    k = steps_per_period(accuracy)
+    # the modes only where they can decide (their eigenvalues cost about as much as a short run)
+    periods = tr.periods(accuracy) if expm_ok and tr.expm_steps <= k * tr.periods_bound() else 0.0
+    if expm_ok and tr.modes is not None and periods > 0 and tr.expm_steps <= k * periods:
         zeta, f = tr.slowest_decay()
         kind = "lightly damped" if zeta < ZETA_LIGHT else "damped"
         out.append(("expm", f"linear and oscillating over {periods:.3g} periods at accuracy {accuracy:g} ({kind}: "
                             f"damping ratio {zeta:.2g} at {f:.3g} Hz): the exact flow takes {tr.expm_steps} output "
                             f"steps and keeps amplitude and phase"))
-    elif expm_ok and tr.modes is None and tr.states >= EXPM_STATES:
+    elif expm_ok and tr.floor > NEAR_ROUNDOFF * accuracy:
+        out.append(("expm", f"linear, its round-off bound {tr.floor:.2g} within {1 / NEAR_ROUNDOFF:g}x of the "
+                            f"accuracy {accuracy:g}: a stepping method would need an rtol near the limit of the link "
+                            f"spread {tr.spread:.3g}"))
+    elif expm_ok and tr.states >= EXPM_STATES and tr.periods_bound() > 0 and tr.modes is None:
         out.append(("expm", f"linear with {tr.states} states: the matrix exponential's cost per output step grows "
                             f"about linearly with a chain's size"))
     why = "nonlinear" if not tr.linear else (
@@ -183,6 +227,8 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
         why += f", stiff (link spread {tr.spread:.3g})"
     out.append(("ida", f"{why}: variable-order BDF with events located by root finding"))
     if out[0][0] == "ida":
+        if expm_ok:
+            out.append(("expm", "linear, after ida refused: the exact flow"))
         out.append(("scipy:Radau", "after ida refused: an implicit Runge-Kutta method"))
     return out
 
