@@ -305,12 +305,10 @@ def test_scene_accuracy_bounds_the_outputs_against_the_full_model():
 def test_sweep_passes_the_accuracy_to_every_run():
     def build(c=200.0):
         return two_inertias(c=c)[0]
-    with pytest.warns(RuntimeWarning, match="all 2 runs failed"):
-        table = rm.sweep(build, {"c": [100.0, 200.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0,
-                         dt_out=0.01, accuracy=0.5)
-    status = list(table["status"]) if hasattr(table, "iloc") else table.column("status")
-    errors = list(table["error"]) if hasattr(table, "iloc") else table.column("error")
-    assert status == ["failed", "failed"] and all("accuracy" in e for e in errors)
+    # an accuracy out of range stops the study before any run (checked with the other options)
+    with pytest.raises(rm.ParameterError, match=r"accuracy .* must be a number in \(0, 0.1\]"):
+        rm.sweep(build, {"c": [100.0, 200.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0,
+                 dt_out=0.01, accuracy=0.5)
     table = rm.sweep(build, {"c": [100.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0, dt_out=0.01,
                      accuracy=1e-4)
     assert list(table["status"] if hasattr(table, "iloc") else table.column("status")) == ["ok"]
