@@ -175,10 +175,9 @@ def _cause(f):
         cls = (f.get("where") or "").split(" ")[0]
         return f"{kind}: {cls}"
     if kind in ("wrong-answer", "disagreement", "range-accuracy"):
-        pair = run.split("/")
-        return f"{kind}: {' vs '.join(sorted(pair))}"
+        return kind
     if kind in ("power-balance", "energy-books", "budget", "nonfinite"):
-        return f"{kind}: {run.split('_')[0]}"
+        return f"{kind}: {run}"
     return kind
 
 

@@ -39,7 +39,8 @@ def test_lossy_gear_never_supplies_power(case):
     else:
         m, solver = _lossy_gear_model([[0.0, 0.7866, 0.696, 0.04691, 1.225], [4.035, 0.8743, 0.9058, 0.0, 0.0]],
                                       9.782), "ida"
-    res = m.simulate(0.6744, dt_out=0.001686, solver=solver, rtol=1e-10)
+    # (ida at rtol 1e-8: at 1e-10 it needs 2e5 residual calls on this two-inertia model, all at the same loss)
+    res = m.simulate(0.6744, dt_out=0.001686, solver=solver, rtol=1e-10 if solver != "ida" else 1e-8)
     p = res["gear.power"]
     assert p.min() >= -1e-6 * np.abs(p).max(), (p.min(), res.t[np.argmin(p)])
 
