@@ -263,8 +263,10 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
         fn = SOLVERS[solver]
         unknown = sorted(set(options) - _accepted(fn))
         if unknown:
+            from .options import unknown_message      # with the closest names, when there are
             raise ParameterError(f"simulate(): option(s) {unknown} are not options of '{solver}', which "
-                                 f"solver='auto' chose ({reason}); name the solver that takes them")
+                                 f"solver='auto' chose ({reason}); name the solver that takes them. "
+                                 f"{unknown_message(solver, fn.options, unknown)}")
         try:
             res = simulate_with_accuracy(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
         except SimulationError as exc:
@@ -275,7 +277,8 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
                 first = refused[0]
                 raise type(exc)(f"{exc} (solver='auto' tried '{first[0]}' first, which refused: "
                                 f"{' '.join(str(first[1]).split())[:300]})",
-                                **(exc.fields() if hasattr(exc, "fields") else {})) from exc
+                                **(exc.fields() if hasattr(exc, "fields") else {})) \
+                    from (exc.__cause__ if exc.__cause__ is not None else exc)     # e.g. the user's own exception
             raise
         st = res.stats
         elapsed = time.perf_counter() - t0
