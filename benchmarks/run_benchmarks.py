@@ -36,8 +36,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 WP_DIR = RESULTS / "wp"
-SECTIONS = ["foundation.md", "work_precision.md", "hard_cases.md", "solvers_ode.md", "linsolver.md", "expm.md",
-            "modal.md", "sweep.md"]
+SECTIONS = ["foundation.md", "work_precision.md", "calibration.md", "hard_cases.md", "solvers_ode.md", "linsolver.md",
+            "expm.md", "modal.md", "sweep.md"]
 PICK_BEGIN, PICK_END = "<!-- which-solver:begin -->", "<!-- which-solver:end -->"
 
 
