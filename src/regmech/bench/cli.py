@@ -2,12 +2,15 @@
 
     regmech bench [--quick] [--scenes KEY ...] [--solvers NAME ...] [--out DIR]
                   [--repeats N] [--time-limit S] [--cache DIR | --no-cache] [--no-progress]
+    regmech bench --calibration [--scenes CASE ...] [--solvers NAME ...] [--out DIR] [--time-limit S]
 
 Writes ``work_precision.csv``, ``work_precision.md`` and one log-log plot
 ``wp_<scene>.png`` per scene into ``--out`` (default ``bench-out``).
 ``--quick`` runs the two MSL scenes and the 10-car train with three
 tolerances and two steps per solver (a few minutes on two cores).
-``--list`` prints the scenes and solvers and exits.
+``--list`` prints the scenes and solvers and exits. ``--calibration`` runs the
+calibration of the accuracy contract instead (``regmech.bench.calibration``;
+``--scenes`` then takes its case keys).
 """
 
 from __future__ import annotations
@@ -30,6 +33,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-cache", action="store_true", help="recompute the references, do not store them")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--list", action="store_true", help="list scenes and solvers, then exit")
+    p.add_argument("--calibration", action="store_true",
+                   help="calibration of the accuracy contract instead: every solver's achieved error against the "
+                        "accuracy asked for (1e-2..1e-6) on the library scenes and the hard cases (CI size), "
+                        "calibration.md/.png/.csv in --out (an interrupted run resumes from the CSV)")
     return p
 
 
@@ -41,6 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     from .workprecision import run_work_precision
 
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
+    if args.calibration:
+        return _calibration(args, argv)
     solvers_known = available_solvers()
     if args.list:
         for sc in all_scenes():
@@ -72,6 +81,24 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(run.records)} runs in {run.wall_total / 60:.1f} min; report: {path}")
     if bad:
         print(f"{bad} run(s) crashed with a non-regmech exception (see the report)", file=sys.stderr)
+    return 0
+
+
+def _calibration(args, argv) -> int:
+    from . import calibration as C
+    cases = C.all_cases()
+    if args.scenes:
+        unknown = set(args.scenes) - {c.key for c in cases}
+        if unknown:
+            print(f"regmech bench --calibration: unknown case(s) {sorted(unknown)}; choose from "
+                  f"{[c.key for c in cases]}", file=sys.stderr)
+            return 2
+        cases = [c for c in cases if c.key in args.scenes]
+    command = "regmech bench " + " ".join(sys.argv[1:] if argv is None else argv)
+    path = C.run_all(Path(args.out), cases=cases, solvers=args.solvers, limit=args.time_limit or 30.0,
+                     cache_dir=Path(args.cache) if args.cache else None, command=command.strip(),
+                     log=(lambda msg: None) if args.no_progress else (lambda msg: print(msg, file=sys.stderr)))
+    print(f"calibration report: {path}")
     return 0
 
 

@@ -13,8 +13,12 @@ The choice (``choose``) reads a few *traits* of the compiled model
   coordinates, the damping ratio and frequency of every oscillating mode at
   the start (the roots of ``lambda^2 M + lambda B + C``), those up to the
   Nyquist frequency of the output grid;
-* ``expm_steps``: the steps ``expm`` takes (one per output interval and
-  breakpoint); ``states`` (ODE-form size) and ``friction`` (devices).
+* ``expm_steps(a)``: the steps ``expm`` takes: one per output interval and
+  breakpoint, and at least ``EXPM_STEPS_PER_FORCING * a^-1/2`` per period of
+  the fastest sinusoidal input (its forcing fit is of order 2 in the step;
+  measured on chain_drive_5, 425 Hz: the contract took 23, 54, 170 and 540
+  steps per period at 1e-3 .. 1e-6); ``states`` (ODE-form size) and
+  ``friction`` (devices).
 
 What decides between a stepping method (``ida``) and the exact flow
 (``expm``) is how long the model oscillates: a stepping method must resolve
@@ -32,7 +36,7 @@ contract", which lists the figures each comes from):
 within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
 ``FLOOR_MARGIN`` = 1/3, the contract's ``FIXED_STEP_MARGIN``). Then:
 
-1. ``expm_steps <= K(accuracy) * periods(accuracy)`` with ``K(a) =
+1. ``expm_steps(a) <= K(a) * periods(a)`` with ``K(a) =
    EXPM_STEPS_PER_PERIOD + EXPM_STEPS_PER_DECADE * log10(1/a)`` (a stepping
    method takes more steps per period the tighter the accuracy): ``expm``
    (an undamped or lightly damped model over many periods always lands
@@ -42,9 +46,10 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
 2. ``floor > accuracy * NEAR_ROUNDOFF``: ``expm``, since a stepping method
    would need an rtol near the limit the link spread sets
    (``common.check_link_spread``; ida refused inertia_ratio_1e8 at 1e-6);
-3. too large for the modal traits (``states >= EXPM_STATES``): ``expm``,
-   whose cost per step grows about linearly with the size of a chain
-   (sparse propagator);
+3. too large for the modal traits (more than ``MODAL_MAX`` coordinates)
+   at ``accuracy <= EXPM_LARGE_ACCURACY``: ``expm`` (train_100: 0.97 s
+   against ida's 1.19 s at 1e-4, 1.07 against 1.54 at 1e-6, but ida 2x
+   faster at 1e-2);
 4. otherwise ``ida`` (the fastest solver under the contract on every
    nonlinear case measured, stiff ones included).
 
@@ -77,10 +82,13 @@ NEAR_ROUNDOFF = 1e-2
 #: expm when its steps are at most this many times the periods a stepping method must resolve
 EXPM_STEPS_PER_PERIOD = 4.0
 EXPM_STEPS_PER_DECADE = 2.0
-#: linear models of at least this many ODE states (too large for the modal traits) go to expm
-EXPM_STATES = 2 * 100
-#: damped modes computed for linear models up to this many independent coordinates
-MODAL_MAX = 100
+#: linear models too large for the modal traits go to expm at this accuracy or tighter
+EXPM_LARGE_ACCURACY = 1e-4
+#: damped modes computed for linear models up to this many independent coordinates (the eigenvalues of the
+#: companion matrix cost 0.15-0.75 s at 100 on the loaded development machine, a few ms at 40)
+MODAL_MAX = 40
+#: expm's steps per period of the fastest sinusoidal input at accuracy a: this times a^-1/2
+EXPM_STEPS_PER_FORCING = 0.54
 #: a mode with a damping ratio below this counts as lightly damped (in the reason only)
 ZETA_LIGHT = 0.02
 #: link spread from which a model counts as stiff (in the reason only)
@@ -101,6 +109,7 @@ class Traits:
     states: int
     friction: int
     f_bound: float = math.inf       # an upper bound of the frequencies that count [Hz]
+    f_forcing: float = 0.0          # the fastest sinusoidal input [Hz]
     _modes: object = field(default=False, repr=False)
 
     @property
@@ -109,6 +118,11 @@ class Traits:
         if self._modes is False:
             self._modes = self.modes_of() if callable(self.modes_of) else self.modes_of
         return self._modes
+
+    def expm_steps_at(self, accuracy: float) -> float:
+        """``expm_steps(a)`` of the module docstring."""
+        return max(float(self.expm_steps),
+                   self.span * self.f_forcing * EXPM_STEPS_PER_FORCING / math.sqrt(accuracy))
 
     def periods_bound(self) -> float:
         """An upper bound of ``periods(a)`` for any a, without the modes: span times the frequency bound."""
@@ -159,7 +173,18 @@ def traits(model, t_start: float, t_end: float, dt_out: float) -> Traits:
         f_bound = min(f_nyquist, 2.0 * link[1] / (2 * math.pi))
     steps = len(output_grid(t_start, t_end, dt_out)) - 1 + len(signal_breakpoints(model, t_start, t_end))
     return Traits(linear, bad, floor, spread, modes_of, t_end - t_start, steps, int(c.ode_size()), int(c.mf),
-                  f_bound=f_bound)
+                  f_bound=f_bound, f_forcing=_forcing_frequency(model))
+
+
+def _forcing_frequency(model) -> float:
+    """The highest frequency [Hz] of the model's sinusoidal inputs (0 without)."""
+    from ..signals import Signal
+    f = 0.0
+    for comp in model.components.values():
+        for val in comp._values.values():
+            if isinstance(val, Signal):
+                f = max(f, abs(float(getattr(val, "freq_hz", 0.0) or 0.0)))
+    return f
 
 
 def _modes(c, t_start, f_max):
@@ -204,23 +229,24 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     expm_ok = tr.linear and tr.floor <= FLOOR_MARGIN * accuracy
     k = steps_per_period(accuracy)
     # the modes only where they can decide (their eigenvalues cost about as much as a short run)
-    periods = tr.periods(accuracy) if expm_ok and tr.expm_steps <= k * tr.periods_bound() else 0.0
-    if expm_ok and tr.modes is not None and periods > 0 and tr.expm_steps <= k * periods:
+    steps = tr.expm_steps_at(accuracy)
+    periods = tr.periods(accuracy) if expm_ok and steps <= k * tr.periods_bound() else 0.0
+    if expm_ok and tr.modes is not None and periods > 0 and steps <= k * periods:
         zeta, f = tr.slowest_decay()
         kind = "lightly damped" if zeta < ZETA_LIGHT else "damped"
         out.append(("expm", f"linear and oscillating over {periods:.3g} periods at accuracy {accuracy:g} ({kind}: "
-                            f"damping ratio {zeta:.2g} at {f:.3g} Hz): the exact flow takes {tr.expm_steps} output "
+                            f"damping ratio {zeta:.2g} at {f:.3g} Hz): the exact flow takes about {steps:.0f} "
                             f"steps and keeps amplitude and phase"))
     elif expm_ok and tr.floor > NEAR_ROUNDOFF * accuracy:
         out.append(("expm", f"linear, its round-off bound {tr.floor:.2g} within {1 / NEAR_ROUNDOFF:g}x of the "
                             f"accuracy {accuracy:g}: a stepping method would need an rtol near the limit of the link "
                             f"spread {tr.spread:.3g}"))
-    elif expm_ok and tr.states >= EXPM_STATES and tr.periods_bound() > 0 and tr.modes is None:
-        out.append(("expm", f"linear with {tr.states} states: the matrix exponential's cost per output step grows "
-                            f"about linearly with a chain's size"))
+    elif expm_ok and accuracy <= EXPM_LARGE_ACCURACY and tr.periods_bound() > 0 and tr.modes is None:
+        out.append(("expm", f"linear with {tr.states} states at accuracy {accuracy:g}: the exact flow takes one "
+                            f"step per output interval"))
     why = "nonlinear" if not tr.linear else (
-        f"linear, oscillating over {periods:.3g} periods at accuracy {accuracy:g} against {tr.expm_steps} output "
-        f"steps" if periods > 0 else "linear without oscillating modes")
+        f"linear, oscillating over {periods:.3g} periods at accuracy {accuracy:g} against about {steps:.0f} expm "
+        f"steps" if periods > 0 else "linear")
     if tr.linear and not expm_ok:
         why += f" (round-off bound {tr.floor:.2g} too close to the accuracy for expm)"
     if tr.spread >= STIFF_SPREAD:
