@@ -60,9 +60,8 @@ def test_ida_default_meets_the_tight_reference_on_a_chain_that_moves_little(fric
 
     The bound: driven by 300 N, where the plain atol is nearly relative
     already, IDA's own global error at rtol 1e-6 over these 0.5 s is 4.1e-5
-    (sine; 2.0e-5 with the rescaled atol) and 4.9e-5 (step with friction); a
-    tolerance that is relative gives as much at 0.03 N, and 1e-4 leaves twice
-    that. Measured at 0.03 N: 3.9e-5 and 4.6e-5 now; 1.1e-2 and 1.7e-3 with
+    (sine) and 4.9e-5 (step with friction); a tolerance that is relative
+    gives as much at 0.03 N, and 1e-4 leaves twice that. Measured at 0.03 N: 3.9e-5 and 4.6e-5 now; 1.1e-2 and 1.7e-3 with
     the plain atol (Radau at the defaults: 1.0e-4 and 1.9e-5).
     """
     m = chain(0.03, friction, signal)
@@ -110,8 +109,8 @@ def test_rescaled_atol_rule():
     c = _compiled_chain()
     rtol, atol = 1e-6, 1e-8
     Y = np.zeros((3, c.N))
-    Y[1, c.ix] = 2e-3              # positions up to 2e-3 (a tenth of s = 1 and less: rescaled)
-    Y[2, c.iv] = -0.5              # speeds up to 0.5 (above s / 10: as they are)
+    Y[1, c.ix] = 2e-3              # positions up to 2e-3 (below s / 30, s = 1: rescaled)
+    Y[2, c.iv] = -0.5              # speeds up to 0.5 (above s / 30: as they are)
     Y[1, c.ilam] = 1e3             # forces are not a kind: they keep _atol_vector's scaling
     tol, factors = ida._rescaled_atol(c, Y, rtol, atol)
     assert factors["positions"] == pytest.approx(2e-3) and factors["speeds"] == pytest.approx(0.5)
@@ -120,8 +119,8 @@ def test_rescaled_atol_rule():
     assert np.all(tol[c.ilam] == atol)
     # the default atol is rtol * 1e-2
     assert np.allclose(ida._rescaled_atol(c, Y, rtol, None)[0], tol)
-    # every kind at or above s / 10: no second run; nor for an array atol
-    Y[1, c.ix] = 0.1
+    # every kind at or above s / 30: no second run; nor for an array atol
+    Y[1, c.ix] = 0.04
     assert ida._rescaled_atol(c, Y, rtol, atol) is None
     Y[1, c.ix] = 2e-3
     assert ida._rescaled_atol(c, Y, rtol, np.full(c.N, atol)) is None
