@@ -221,6 +221,63 @@ def check_link_spread(c, rtol, solver: str, stiff_check=True):
             component=dev.name, estimate=float(np.finfo(float).eps * spread))
 
 
+#: smallest factor by which a small state's absolute tolerance is scaled down (``StateScale``)
+ATOL_FLOOR = 1e-3
+
+
+class StateScale:
+    """The magnitude of each kind of state seen so far in a run, and the absolute tolerances it gives.
+
+    A solver's state has kinds (positions, speeds, device states), each an
+    index set (``kinds``: slices or index arrays into a vector of ``size``
+    entries). ``m_k`` is the largest ``|u_i|`` of kind k so far in the run
+    and, for a scalar ``atol``,
+
+        atol_i = atol * clip(m_k / saturation, floor, 1)      (u_i of kind k)
+
+    entries outside every kind keep ``atol``; an array ``atol`` is returned
+    unchanged. So the scalar ``atol`` is the absolute tolerance of a motion
+    of magnitude ``saturation`` (default 1: 1 m, 1 rad, 1 m/s, ...) or more,
+    and a motion that stays small gets a proportionally smaller one: with
+    the plain ``atol`` the error test of a state much smaller is absolute
+    (``atol >> rtol |u|``), i.e. looser than ``rtol`` by ``atol / (rtol
+    |u|)``. ``floor`` (default ``ATOL_FLOOR``) bounds the scaling. Per kind,
+    not per state: a state that stays small beside large ones of its kind (a car the
+    coupler wave has not reached yet) keeps its kind's tolerance, so it costs
+    no extra steps. The scaling never loosens a tolerance. One object per
+    run: its segments share it.
+    """
+
+    def __init__(self, atol, kinds, size, saturation=1.0, floor=ATOL_FLOOR):
+        self.atol = atol
+        self.scalar = np.ndim(atol) == 0
+        self.saturation = float(saturation)
+        self.floor = float(floor)
+        self.size = int(size)
+        self.kinds = [k for k in kinds if (len(range(self.size)[k]) if isinstance(k, slice) else len(k))]
+        self.largest = np.zeros(len(self.kinds))
+
+    def see(self, u):
+        """Take the magnitudes of a state ``u`` (or of rows of states, ``u[..., i]``) into account."""
+        u = np.asarray(u, float)
+        for k, idx in enumerate(self.kinds):
+            part = u[..., idx]
+            if part.size:
+                self.largest[k] = max(self.largest[k], float(np.max(np.abs(part))))
+
+    def factors(self):
+        """``clip(m_k / saturation, floor, 1)`` per kind."""
+        return np.clip(self.largest / self.saturation, self.floor, 1.0)
+
+    def tolerances(self):
+        if not self.scalar:
+            return self.atol
+        out = np.full(self.size, float(self.atol))
+        for f, idx in zip(self.factors(), self.kinds):
+            out[idx] = float(self.atol) * f
+        return out
+
+
 class StepBudget:
     """The steps of one whole run (every segment) against ``max_steps``; shared by the run's steppers.
 

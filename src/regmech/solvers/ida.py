@@ -11,6 +11,17 @@ initial-condition search is not needed.
 
 Linear solver: ``dense`` below ``dense_max`` unknowns (60), ``sparse``
 (SuperLU_MT) with the analytic Jacobian above; ``linsolver`` overrides.
+
+Absolute tolerances. IDA accepts a step when the weighted RMS of its local
+error estimate, with weights ``1 / (rtol |y_i| + atol_i)``, is at most 1. A
+scalar ``atol`` (default ``rtol * 1e-2``) is the absolute tolerance of a
+motion of magnitude ``atol / (KAPPA rtol)`` (1 m, rad, m/s or rad/s for the
+default) or more: a run in which all positions, all speeds or all device
+states stayed below a thirtieth of that is made again with their absolute
+tolerances scaled to their magnitude (``_rescaled_atol``; the stats count
+both runs). An array ``atol`` is used as given. The algebraic unknowns
+(forces, dummy accelerations) get ``_atol_vector``'s scaling at every
+segment start.
 """
 
 from __future__ import annotations
@@ -23,7 +34,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..result import Event, Result, Stats
 from . import register
-from .common import (Recorder, check_link_spread, check_times, output_grid, run_deadline,
+from .common import (Recorder, StateScale, check_link_spread, check_times, output_grid, run_deadline,
                      signal_breakpoints)
 from .options import (Choice, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
                       rtol_option, stiff_check_option)
@@ -42,6 +53,14 @@ IDA_OPTIONS = OptionSet(
     stiff_check=stiff_check_option(),
     **chatter_options(),
 )
+
+#: the absolute tolerance of a kind of state (positions, speeds, device states) is at most this fraction of
+#: ``rtol`` times the kind's magnitude (``_rescaled_atol``)
+KAPPA = 0.01
+#: a run whose plain ``atol`` exceeded that by more than this factor for some kind is repeated, rescaled
+RERUN_FACTOR = 30.0
+#: smallest factor of ``atol`` in a repeated run (a kind scaled down over six decades of motion below ``s``)
+RERUN_FLOOR = 1e-6
 
 
 class _Ordering:
@@ -184,7 +203,42 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
                  max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, stiff_check=True,
                  chatter_window=None,
                  chatter_count=50):
-    """IDA with analytic sparse Jacobian and event handling (see module docstring)."""
+    """IDA with analytic sparse Jacobian and event handling (see module docstring).
+
+    A run whose motion turns out small for the absolute tolerance is repeated
+    once with the tolerances scaled to it (``_rescaled_atol``); its stats
+    then count both runs and ``stats.extra["atol_rescaled"]`` says so.
+    """
+    call = dict(locals())
+    res = _run_ida(**call)
+    kind_atol = _rescaled_atol(res._traj.c, res._traj.Y, call["rtol"], call["atol"])
+    if kind_atol is None:
+        return res
+    tol, factors = kind_atol
+    try:
+        again = _run_ida(**call, kind_atol=tol)
+    except SimulationError as exc:
+        scaled = ", ".join(f"{k} {v:.3g}" for k, v in factors.items())
+        atol0 = call["rtol"] * 1e-2 if call["atol"] is None else call["atol"]
+        single = 0.5 * RERUN_FACTOR * min(factors.values()) * atol0    # small enough not to be repeated
+        raise SimulationError(
+            f"{exc} (This was a repeated run: the motion of model '{model.name}' is small for atol={atol0:.3g}, "
+            f"so the absolute tolerances of its kinds of state were scaled to it, atol times: {scaled}. Loosen "
+            f"rtol, or pass atol={single:.3g} to make one run with it.)") from exc
+    st, first = again.stats, res.stats
+    st.extra["atol_rescaled"] = dict(factors, first_run_rhs_calls=first.rhs_calls,
+                                     first_run_wall_time=first.wall_time)
+    st.wall_time += first.wall_time
+    st.rhs_calls += first.rhs_calls
+    st.jac_calls += first.jac_calls
+    st.compile_time = first.compile_time
+    return again
+
+
+def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max_order, dense_max, max_events,
+             max_steps, stiff_check, chatter_window, chatter_count, kind_atol=None):
+    """One IDA run with ``simulate_ida``'s options; ``kind_atol``: the absolute tolerances of positions,
+    speeds and device states per unknown (``_rescaled_atol``), None for the plain ``atol``."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
     deadline = run_deadline("ida", model, t_end)
     tc = time.perf_counter()
@@ -229,7 +283,8 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
             # an event landed on a breakpoint (to round-off): nothing to integrate
             sol = None
         else:
-            sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse, deadline)
+            sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse, deadline,
+                                 kind_atol)
         if sol is not None and sol.status == 2:
             t_ev = float(sol.t_events[-1])
             y_ev, yp_ev = np.array(sol.y_events[-1]), np.array(sol.yp_events[-1])
@@ -272,11 +327,77 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
 
 
-def _atol_vector(c, atol, y, yp, k_max):
+def _rescaled_atol(c, Y, rtol, atol):
+    """Absolute tolerances for a second run when the first one's motion was small for a scalar ``atol``.
+
+    IDA's error test weighs each unknown by ``rtol |y_i| + atol_i``. For a
+    kind of state (positions, speeds, device states) whose largest magnitude
+    ``m_k`` in the run is small, ``atol`` exceeds ``rtol m_k`` and the test
+    becomes absolute: the error relative to the motion grows as the motion
+    shrinks. Measured on the chain of ``tests/unit/test_ida_tolerances.py``
+    (0.8, 15.6, 267 and 27.3 kg, springs 8e3 to 1.6e4 N/m, an ElastoBacklash
+    with b = 0, the 267 kg mass on a spring to the ground, a force step of F
+    on the 0.8 kg mass; its speed against a tight reference, relative to its
+    range, rtol 1e-6, 2 s): F = 300 N (positions to 0.16 m, speeds to 4 m/s)
+    2.2e-4, 3 N 5.5e-4, 0.3 N 3.4e-3, 0.03 N 1.5e-2 with ``atol = 1e-8``
+    (the model is linear: a relative tolerance promises the same error for
+    every F); 1.9e-4, 2.3e-4 and 1.9e-4 at 3, 0.3 and 0.03 N with the
+    tolerances below. The rule is ``atol_k <= KAPPA rtol m_k``:
+
+        atol_k = max(atol clip(m_k / s, RERUN_FLOOR, 1), min(atol, 1e3 eps m_k)),   s = atol / (KAPPA rtol)
+
+    (``StateScale`` with saturation ``s``: 1 for the default ``atol = rtol *
+    1e-2``, as scipy:DOP853 scales its atol; never below the round-off of the
+    kind's magnitude). IDA takes its tolerances once per solver: following a
+    growing magnitude would cost a restart, a BDF start-up of about 40
+    residual calls, at every decade (measured: +23 % CPU time on the library
+    scenes), and a run that keeps the tolerances of a motion at rest is many
+    times too tight once it moves (+50 % on train_100). So the run is made
+    with ``atol`` and repeated once, with the ``atol_k`` of its magnitudes,
+    only when some kind that moved had ``atol`` above ``RERUN_FACTOR`` times
+    its ``atol_k`` (``m_k < s / 30``: ``atol > 0.3 rtol m_k``). The same
+    chain with and without its FrictionContact, step and sine, F from 300 N
+    to 10 N (positions 0.16 to 0.002 m), over 2 s: 1.4e-4 to 5.8e-4 with
+    ``atol``, 1.4e-4 to 2.5e-4 rescaled; where ``atol <= 0.3 rtol m_k`` the
+    plain ``atol`` was at most 1.6 times the rescaled error (over 0.5 s and
+    2 s), not worth a second run. On the library scenes no kind is below
+    ``s / 30`` (the smallest: one_way_clutch's angles, 0.29 rad) and nothing
+    is repeated.
+
+    Returns None (no second run: an array ``atol``, or a motion large enough),
+    or ``(per-unknown atol for x, v and z, {kind: factor})``.
+    """
+    atol = rtol * 1e-2 if atol is None else atol           # the default of ``_run_ida``
+    if np.ndim(atol) or not rtol > 0 or not atol > 0:
+        return None
+    named = [(name, sl) for name, sl in (("positions", c._sx), ("speeds", c._sv), ("device_states", c._sz))
+             if len(range(c.N)[sl])]
+    scale = StateScale(atol, [idx for _, idx in named], c.N, saturation=atol / (KAPPA * rtol),
+                       floor=RERUN_FLOOR)
+    Y = np.asarray(Y, float)
+    scale.see(np.maximum(Y.max(axis=0), -Y.min(axis=0)))     # |y| per unknown without an |Y| temporary
+    moved = scale.largest > 0
+    f = scale.factors()
+    if not np.any(moved & (f * RERUN_FACTOR < 1.0)):
+        return None
+    tol = scale.tolerances()
+    roundoff = 1e3 * np.finfo(float).eps * scale.largest
+    factors = {}
+    for k, (name, idx) in enumerate(named):
+        if moved[k]:
+            tol[idx] = max(float(tol[idx][0]), min(float(atol), roundoff[k]))
+        else:
+            tol[idx] = atol          # nothing of this kind moved: nothing to resolve more finely
+        factors[name] = float(tol[idx][0] / atol)
+    return tol, factors
+
+
+def _atol_vector(c, atol, y, yp, k_max, kind_atol=None):
     """Absolute tolerances per unknown.
 
-    Positions, velocities and device states take the user's ``atol``. The
-    algebraic forces (constraint forces, holding torques) and dummy
+    Positions, velocities and device states take the user's ``atol``, or
+    ``kind_atol`` when the run is repeated for a small motion
+    (``_rescaled_atol``). The algebraic forces (constraint forces, holding torques) and dummy
     accelerations are scaled by the forces present at the segment start, and
     never below the round-off a stiff link puts on them (``eps * k * |x|``):
     with the plain ``atol`` a force passing through zero gets an error
@@ -285,7 +406,7 @@ def _atol_vector(c, atol, y, yp, k_max):
     x, v, a, lam, z = c.unpack(y, yp)
     f_scale = max(1.0, float(np.abs(lam).max(initial=0.0)), float(np.abs(c.mass * a).max(initial=0.0)))
     noise = 1e3 * np.finfo(float).eps * k_max * max(1.0, float(np.abs(x).max(initial=0.0)))
-    vec = np.full(c.N, float(atol))
+    vec = np.full(c.N, float(atol)) if kind_atol is None else np.array(kind_atol, float)
     vec[c.ilam] = atol * f_scale + noise
     a_scale = max(1.0, float(np.abs(a).max(initial=0.0)))
     m_min = float(c.mass[c.mass > 0].min(initial=1.0))
@@ -314,7 +435,8 @@ def _reusable(reuse, modes, atol_vec):
     return reuse["solver"]
 
 
-def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse=None, deadline=None):
+def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse=None, deadline=None,
+                   kind_atol=None):
     """One IDA run from t to t_stop (or to the first mode event); records the output rows.
 
     After a mode event the solver is a fresh one: scikit-sundae's event bookkeeping lives on the
@@ -326,7 +448,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     """
     with_events = bool(c.friction) and c.friction.n_events > 0
     rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps = opts
-    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max)
+    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol)
     solver = _reusable(reuse, modes, atol_vec)
     if solver is None:
         solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,

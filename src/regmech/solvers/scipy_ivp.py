@@ -87,8 +87,8 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from ..errors import RegmechError, SimulationError
-from . import register
-from .common import StepBudget, check_link_spread, scale_hint
+from . import common, register
+from .common import ATOL_FLOOR, StepBudget, check_link_spread, scale_hint  # noqa: F401 (ATOL_FLOOR: re-exported)
 from .divergence import MAX_GROWTH
 from .ode_driver import Stepper, ode_jacobian_pattern, simulate_ode
 from .options import (Integer, OptionSet, atol_option, chatter_options, max_events_option, max_growth_option,
@@ -100,46 +100,18 @@ METHODS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": 
 DEFAULT_MAX_STEPS = {"RK23": 40_000, "RK45": 25_000, "DOP853": 12_000, "Radau": 15_000, "BDF": 40_000,
                      "LSODA": 60_000}
 
-#: smallest factor by which a small state's absolute tolerance is scaled down (see the module docstring)
-ATOL_FLOOR = 1e-3
 #: the methods whose scalar atol is scaled to the magnitude of the motion (``StateScale``)
 SCALED_ATOL = ("DOP853",)
 
 
-class StateScale:
-    """The magnitude of each kind of state seen so far in a run, and the absolute tolerances it gives.
-
-    The ODE state ``u = [x_K, v_K, z]`` has three kinds: positions, speeds
-    and device states. ``m_k`` is the largest ``|u_i|`` of kind k so far
-    in the run and ``atol_i = atol * clip(m_k, ATOL_FLOOR, 1)`` for a
-    scalar ``atol`` (an array ``atol`` is returned unchanged). Per kind, not
-    per state: a state that stays small beside large ones of its kind (a car
-    the coupler wave has not reached yet) keeps the plain ``atol``, so it
-    costs no extra steps; a model whose whole motion is small gets a
-    proportionally smaller tolerance. One object per run: its segments share it.
-    """
+class StateScale(common.StateScale):
+    """``common.StateScale`` over the ODE state ``u = [x_K, v_K, z]``: kinds positions, speeds and
+    device states."""
 
     def __init__(self, atol, c):
-        self.atol = atol
-        self.scalar = np.ndim(atol) == 0
         nx, nv = len(c.Kx), len(c.Kv)
         bounds = [0, nx, nx + nv, c.ode_size()]
-        self.kinds = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-        self.largest = np.zeros(len(self.kinds))
-
-    def see(self, u):
-        u = np.asarray(u, float)
-        for k, sl in enumerate(self.kinds):
-            self.largest[k] = max(self.largest[k], float(np.max(np.abs(u[sl]))))
-
-    def tolerances(self):
-        if not self.scalar:
-            return self.atol
-        factors = np.clip(self.largest, ATOL_FLOOR, 1.0)
-        out = np.empty(self.kinds[-1].stop if self.kinds else 0)
-        for f, sl in zip(factors, self.kinds):
-            out[sl] = float(self.atol) * f
-        return out
+        super().__init__(atol, [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a], c.ode_size())
 
 
 class ScipyStepper(Stepper):
