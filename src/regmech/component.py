@@ -23,6 +23,7 @@ power a device absorbs is ``sum_r tau_r * de_r``.
 
 from __future__ import annotations
 
+import inspect
 import math
 from typing import Any, ClassVar
 
@@ -32,6 +33,7 @@ from ._numbers import as_real, describe
 from .errors import ParameterError, UnknownFlangeError
 from .ports import DOMAINS, ROTATIONAL, TRANSLATIONAL, VARIABLE_NAMES, Flange
 from .signals import Signal, as_signal
+from .units import FIXED_UNITS, in_domain, variable_unit
 
 REQUIRED = object()
 #: the smallest positive normal double (2.2e-308): a "positive" or "nonzero" parameter below it is refused
@@ -66,6 +68,8 @@ class Param:
         self.bounds = bounds
         self.bounds_note = bounds_note
         self.name = "?"
+        #: the default kind of flange of the class declaring it (set by ``Component.__init_subclass__``)
+        self.owner_domain: str | None = None
 
     def __set_name__(self, owner, name):
         self.name = name
@@ -103,24 +107,41 @@ class Param:
             return read_only(arr)
         number = as_real(value)      # any real scalar: int, float, numpy scalars (np.float32, np.int64), ...
         if number is None:
-            raise ParameterError(f"{where}: parameter '{self.name}' must be a real number{self._unit()}, got "
+            raise ParameterError(f"{where}: parameter '{self.name}' must be a real number{self._unit(comp)}, got "
                                  f"{describe(value)}")
         if not math.isfinite(number):
             raise ParameterError(f"{where}: parameter '{self.name}' must be finite, got {value!r}")
         bad = {"positive": number <= 0, "nonnegative": number < 0, "nonzero": number == 0}.get(self.check, False)
         if bad:
             want = {"positive": "> 0", "nonnegative": ">= 0", "nonzero": "non-zero"}[self.check]
-            raise ParameterError(f"{where}: parameter '{self.name}' must be {want}{self._unit()}, got {value!r}")
+            raise ParameterError(f"{where}: parameter '{self.name}' must be {want}{self._unit(comp)}, got {value!r}")
         if self.check in ("positive", "nonzero") and abs(number) < TINY:
             # a subnormal divisor: its reciprocal overflows to inf (1 / 1e-310), so the equations turn non-finite
             size = "in magnitude " if number < 0 else ""
-            raise ParameterError(f"{where}: parameter '{self.name}' = {number:g}{self._unit()} is {size}below "
+            raise ParameterError(f"{where}: parameter '{self.name}' = {number:g}{self._unit(comp)} is {size}below "
                                  f"{TINY:.3g}, the smallest normal double, whose reciprocal overflows; give a "
                                  f"realistic value (SI units)")
         return number
 
-    def _unit(self):
-        return f" [{self.unit}]" if self.unit else ""
+    def _unit(self, comp=None):
+        unit = self.unit_in(getattr(comp, "domain", ROTATIONAL))
+        return f" [{unit}]" if unit and unit != "1" else ""
+
+    def unit_in(self, domain: str) -> str:
+        """The unit in ``domain``: units are written for a class's default kind of flange, and a class
+        whose kind is chosen per instance (``Spring(..., domain="translational")``) reads ``N m/rad`` as
+        ``N/m`` (``units.TRANSLATIONAL_OF``)."""
+        if self.owner_domain is not None and self.owner_domain != domain:
+            return in_domain(self.unit, domain)
+        return self.unit
+
+    def type_text(self) -> str:
+        """What the parameter takes, with its unit, as shown in signatures and docstrings."""
+        kind = {"real": "float", "positive": "float > 0", "nonnegative": "float >= 0", "nonzero": "float != 0",
+                "signal": "float | Signal | f(t)", "table": "(n, 2) points",
+                "choice": " | ".join(repr(c) for c in self.choices), "any": "object"}.get(self.check, self.check)
+        unit = f" [{self.unit}]" if self.unit and self.unit != "1" else ""
+        return kind + unit + (" | None" if self.optional else "")
 
 
 def read_only(value) -> np.ndarray:
@@ -128,6 +149,88 @@ def read_only(value) -> np.ndarray:
     arr = np.array(value, dtype=float)
     arr.setflags(write=False)
     return arr
+
+
+_PARAMETER_HEADING = "Parameters (keywords, SI units)"
+
+
+class _Text:
+    """An annotation shown as plain text in signatures (``J: float > 0 [kg m^2]``, no quotes)."""
+
+    def __init__(self, text: str):
+        self.text = text
+
+    def __repr__(self) -> str:
+        return self.text
+
+
+def _own_init_keywords(cls) -> list[inspect.Parameter]:
+    """Keyword-only arguments of ``__init__`` methods that subclasses define themselves (e.g. ``Fixed``'s
+    ``s0``), other than ``domain`` and ``**params``."""
+    extra: list[inspect.Parameter] = []
+    for klass in cls.__mro__:
+        if "__init__" not in vars(klass):
+            continue
+        try:
+            sig = inspect.signature(vars(klass)["__init__"])
+        except (TypeError, ValueError):
+            continue
+        for p in sig.parameters.values():
+            if p.kind is inspect.Parameter.KEYWORD_ONLY and p.name != "domain" and p.name not in {e.name for e in extra}:
+                extra.append(p)
+    return extra
+
+
+def _class_signature(cls) -> inspect.Signature:
+    """``Cls(name, *, p1, p2=default, ..., domain=...)`` from the Param declarations: required parameters
+    first (in declaration order), then those with defaults; ``domain`` when a flange takes its kind
+    from the instance."""
+    P = inspect.Parameter
+    params = [P("name", P.POSITIONAL_OR_KEYWORD, annotation=str)]
+    specs = cls.param_specs()
+    required = [n for n, s in specs.items() if s.default is REQUIRED]
+    optional = [n for n, s in specs.items() if s.default is not REQUIRED]
+    for n in required + optional:
+        spec = specs[n]
+        default = P.empty if spec.default is REQUIRED else spec.default
+        params.append(P(n, P.KEYWORD_ONLY, default=default, annotation=_Text(spec.type_text())))
+    taken = {p.name for p in params}
+    params += [p for p in _own_init_keywords(cls) if p.name not in taken]
+    if any(len(f) > 1 and f[1] is None for f in cls.flanges):
+        params.append(P("domain", P.KEYWORD_ONLY, default=cls.default_domain,
+                        annotation=_Text("'rotational' | 'translational'")))
+    return inspect.Signature(params)
+
+
+def _with_parameter_section(cls, doc: str) -> str:
+    """``doc`` followed by a ``Parameters`` section listing every Param (type, unit, default, doc)."""
+    specs = cls.param_specs()
+    if not specs:
+        return doc
+    lines = ["", "", _PARAMETER_HEADING, "-" * len(_PARAMETER_HEADING)]
+    switchable = any(len(f) > 1 and f[1] is None for f in cls.flanges)
+    for n, spec in specs.items():
+        default = "required" if spec.default is REQUIRED else f"default {spec.default!r}"
+        other = spec.unit_in(TRANSLATIONAL if cls.default_domain == ROTATIONAL else ROTATIONAL)
+        alt = f" ([{other}] when translational)" if switchable and other != spec.unit else ""
+        lines.append(f"{n} : {spec.type_text()}{alt}, {default}")
+        if spec.doc:
+            lines.append(f"    {spec.doc}")
+    return inspect.cleandoc(doc) + "\n".join(lines) + "\n"
+
+
+def _positional_message(cls, args) -> str:
+    """The error for ``Inertia("x", 1.0)``: the class's parameters in order and the call it probably meant."""
+    sig = cls.__signature__
+    names = [p for p in sig.parameters if p != "name"]
+    given = args[1:]
+    guess = ", ".join(f"{n}={v!r}" for n, v in zip(names, given))
+    listing = ", ".join(f"{p.name}{'' if p.default is p.empty else '=' + repr(p.default)}"
+                        for p in list(sig.parameters.values())[1:])
+    more = "" if len(given) <= len(names) else f" ({len(given)} values given, it takes {len(names)} parameters)"
+    return (f"{cls.__name__}({args[0]!r}, {', '.join(repr(a) for a in given)}): parameters are given by keyword "
+            f"after the name{more}; did you mean {cls.__name__}({args[0]!r}, {guess})? {cls.__name__} takes "
+            f"(name, *, {listing}) (SI units; help({cls.__name__}) describes each)")
 
 
 class Component:
@@ -141,6 +244,25 @@ class Component:
     role: ClassVar[str] = "abstract"
     flanges: ClassVar[tuple] = ()
     default_domain: ClassVar[str] = ROTATIONAL
+
+    def __init_subclass__(cls, **kwargs):
+        """Give every component class a real signature and a parameter list in its docstring, built
+        from its ``Param`` declarations (so ``help()``, IDEs and ``inspect.signature`` show them)."""
+        super().__init_subclass__(**kwargs)
+        for val in vars(cls).values():
+            if isinstance(val, Param) and val.owner_domain is None:
+                val.owner_domain = cls.default_domain
+        cls.__signature__ = _class_signature(cls)
+        doc = cls.__dict__.get("__doc__")
+        if doc and _PARAMETER_HEADING not in doc:
+            cls.__doc__ = _with_parameter_section(cls, doc)
+
+    def __new__(cls, *args, **kwargs):
+        # parameters are keywords (Inertia("J1", J=1.0)); a positional one would otherwise end in a bare
+        # TypeError from __init__ that names neither the class's parameters nor their order
+        if len(args) > 1:
+            raise ParameterError(_positional_message(cls, args))
+        return super().__new__(cls)
 
     def __init__(self, name: str, *, domain: str | None = None, **params: Any):
         if not isinstance(name, str) or not name or "." in name or name.strip() != name:
@@ -163,7 +285,7 @@ class Component:
             if pname in params:
                 value = params[pname]
             elif spec.default is REQUIRED:
-                raise ParameterError(f"{type(self).__name__} '{name}': parameter '{pname}' is required{spec._unit()}")
+                raise ParameterError(f"{type(self).__name__} '{name}': parameter '{pname}' is required{spec._unit(self)}")
             else:
                 value = spec.default
             self._values[pname] = spec.validate(self, value)
@@ -189,6 +311,39 @@ class Component:
 
     def params(self) -> dict[str, Any]:
         return dict(self._values)
+
+    def param_unit(self, name: str) -> str:
+        """SI unit of parameter ``name`` for this instance's kind of flange ("" if none is declared)."""
+        spec = self.param_specs().get(name)
+        if spec is None:
+            raise ParameterError(f"{type(self).__name__} '{self.name}' has no parameter '{name}'; "
+                                 f"it takes {list(self.param_specs())}")
+        return spec.unit_in(self.domain)
+
+    # -- units of the exported signals ---------------------------------------
+    #: unit of internal states whose start value is no parameter (name -> unit); a state with a start
+    #: parameter takes that parameter's unit
+    state_units: ClassVar[dict[str, str]] = {}
+
+    def signal_unit(self, var: str) -> str | None:
+        """SI unit of this component's signal ``<name>.<var>`` (``var`` e.g. ``w``, ``tau``, ``w_rel``,
+        ``flange_a.phi``, ``power``, an internal state): from the kind of the flange or of the component
+        (``units.VARIABLE_UNITS``), energies J, powers W, modes 1, internal states from their start
+        parameter or ``state_units``. None when it is none of these (a subclass exporting other signals
+        overrides this)."""
+        head, _, tail = var.partition(".")
+        if tail:
+            fl = self._flanges.get(head)
+            return variable_unit(tail, fl.domain) if fl is not None else None
+        if var in FIXED_UNITS:
+            return FIXED_UNITS[var]
+        states = getattr(self, "states", None) or {}
+        if var in states:
+            if var in self.state_units:
+                return self.state_units[var]
+            start = states[var]
+            return (self.param_unit(start) or None) if start else None
+        return variable_unit(var, self.domain)
 
     def _changed(self):
         if self.model is not None:

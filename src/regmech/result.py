@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import units as units_mod
 from ._numbers import describe
 from .errors import RegmechError, UnknownSignalError
 
@@ -92,6 +93,14 @@ class Stats:
                 f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}{auto}")
 
 
+def _axis_label(units) -> str:
+    """y-axis label for signals shown in ``units``: ``[rad/s]``, or all of them when they differ."""
+    found = list(dict.fromkeys(u if u else "unit unknown" for u in units))
+    if not found:
+        return ""
+    return "[" + "], [".join(found) + "]" if len(found) > 1 else f"[{found[0]}]"
+
+
 class Result:
     def __init__(self, trajectory, events=(), stats: Stats | None = None, model_name: str = ""):
         self._traj = trajectory
@@ -143,34 +152,129 @@ class Result:
             msg += f" '{owner}' has {', '.join(same)}"
         return msg + f" (res.names lists all {len(names)} signals)"
 
-    def at(self, name: str, t: float) -> float:
-        """Linear interpolation of a signal at time t (after the event at t, if any)."""
-        tt = self.t
-        k = int(np.searchsorted(tt, t, side="right"))
-        return float(np.interp(t, tt[:k] if k else tt, self[name][:k] if k else self[name]))
+    # values at an instant -------------------------------------------------------------------------
+    # Both are methods taking the signal name first (as np.interp takes x first): ``res.at(name, t)``
+    # interpolates linearly at one time or an array of times, ``res.final(name)`` is the value at the
+    # last output instant, ``res.final()`` all of them; ``unit=`` converts (``res.get``).
+    def at(self, name: str, t, unit: str | None = None):
+        """Value of signal ``name`` at time ``t`` [s] by linear interpolation between output points; at an
+        event instant (stored twice) the value just after the event. ``t`` a number gives a float, an
+        array of times an array. ``unit``: a display unit (``res.get``)."""
+        tt, y = self.t, self.get(name, unit=unit)
+        tq = np.asarray(t, float)
+        if not np.all(np.isfinite(tq)):
+            raise RegmechError(f"res.at('{name}', t): t must be finite, got {t!r}")
+        if len(tt) < 2:
+            vals = np.full(tq.shape, float(y[0]))
+        else:
+            # i: the last output point at or before t (after an event, whose instant is stored twice);
+            # times outside the run take the end values, as np.interp does
+            i = np.clip(np.searchsorted(tt, tq, side="right") - 1, 0, len(tt) - 2)
+            dt = tt[i + 1] - tt[i]
+            w = np.clip(np.divide(tq - tt[i], dt, out=np.zeros(np.shape(dt)), where=dt > 0), 0.0, 1.0)
+            vals = y[i] + w * (y[i + 1] - y[i])
+        return float(vals) if tq.ndim == 0 else np.asarray(vals)
 
-    def final(self, name: str) -> float:
-        return float(self[name][-1])
+    def final(self, name: str | None = None, unit: str | None = None):
+        """Value of signal ``name`` at the end of the run (a float); without a name, a dict of the final
+        values of every signal (SI). ``unit``: a display unit (``res.get``)."""
+        if name is None:
+            return {n: float(self[n][-1]) for n in self.names}
+        return float(self.get(name, unit=unit)[-1])
 
-    def to_dataframe(self, names=None):
+    # units ------------------------------------------------------------------------------------------
+    def unit(self, name: str) -> str | None:
+        """SI unit of signal ``name`` (``"rad/s"``, ``"N m"``, ``"1"`` for modes; None if its component
+        does not declare it): from the kind of its flange or component and its parameters' units
+        (``Component.signal_unit``, ``regmech.units``)."""
+        if name not in self:
+            raise UnknownSignalError(self._unknown(name))
+        units = self._cache.setdefault(("units",), {})
+        if name not in units:
+            units[name] = self._signal_unit(name)
+        return units[name]
+
+    def _signal_unit(self, name: str) -> str | None:
+        components = self._traj.c.model.components
+        parts = name.split(".")
+        for i in range(len(parts) - 1, 0, -1):       # longest component name first ("wheel.J" before "wheel")
+            comp = components.get(".".join(parts[:i]))
+            if comp is not None:
+                return comp.signal_unit(".".join(parts[i:]))
+        return None
+
+    def get(self, name: str, unit: str | None = None) -> np.ndarray:
+        """Signal ``name`` (as ``res[name]``), in display unit ``unit`` when given (``"rpm"``, ``"deg"``,
+        ``"km/h"``, ``"kN m"``, ... see ``regmech.units.DISPLAY_UNITS``); a unit that does not fit the
+        signal is a ``ParameterError`` listing the ones that do."""
+        values = self[name]
+        if unit is None:
+            return values
+        return units_mod.convert(values, self.unit(name), unit, name)
+
+    def display_unit(self, name: str, units=None) -> str | None:
+        """The unit ``name`` is shown in under ``units``: a display unit (str) for every signal, or a dict
+        keyed by signal name, by the variable (last part of the name, ``"w"``), or by SI unit
+        (``"rad/s"``), looked up in that order; otherwise its SI unit."""
+        si = self.unit(name)
+        if units is None:
+            return si
+        if isinstance(units, str):
+            return units_mod.normalise(units)
+        if not isinstance(units, dict):
+            raise RegmechError(f"units must be a unit name or a dict (signal, variable or SI unit -> unit), "
+                               f"got {describe(units)}")
+        for key in (name, name.rpartition(".")[2], si):
+            if key in units:
+                return units_mod.normalise(units[key])
+        return si
+
+    def _columns(self, names, units):
+        """(header, values) per signal for tables: SI with plain names when ``units`` is None; else
+        ``"name [unit]"`` headers in the display units (``"SI"``: every signal in SI)."""
+        names = list(self.names if names is None else ([names] if isinstance(names, str) else names))
+        if units is None:
+            return [("time", self.t)] + [(n, self[n]) for n in names]
+        units = None if isinstance(units, str) and units.upper() == "SI" else units
+        if isinstance(units, dict):
+            known = set(self.names) | {n.rpartition(".")[2] for n in self.names} | \
+                {u for u in (self.unit(n) for n in names) if u}
+            stray = [k for k in units if k not in known]
+            if stray:
+                raise UnknownSignalError(f"units: {stray} name no signal, variable or SI unit of the result of "
+                                         f"model '{self.model_name}' (keys: signal names such as "
+                                         f"'{names[0] if names else 'J1.w'}', variables such as 'w', or SI units "
+                                         f"such as 'rad/s')")
+        cols = [("time [s]", self.t)]
+        for n in names:
+            unit = self.display_unit(n, units)
+            values = self[n] if unit == self.unit(n) else units_mod.convert(self[n], self.unit(n), unit, n)
+            cols.append((units_mod.label(n, unit), values))
+        return cols
+
+    def to_dataframe(self, names=None, units=None):
+        """A pandas DataFrame with a ``time`` column and one per signal (SI). With ``units`` (``"SI"``, a
+        display unit, or a dict as in ``display_unit``) the columns are named ``"name [unit]"``
+        (``"time [s]"``) and hold the values in those units."""
         try:
             import pandas as pd
         except ImportError as exc:  # pragma: no cover - optional
             raise RegmechError("to_dataframe() needs pandas: pip install 'regmech[pandas]'") from exc
-        names = names or self.names
-        return pd.DataFrame({"time": self.t, **{n: self[n] for n in names}})
+        return pd.DataFrame(dict(self._columns(names, units)))
 
-    def to_csv(self, path, names=None) -> None:
-        names = names or self.names
-        cols = [self.t] + [self[n] for n in names]
+    def to_csv(self, path, names=None, units=None) -> None:
+        """Write ``time`` and the signals to a CSV file (full precision). ``units`` as in
+        ``to_dataframe``: headers ``"name [unit]"`` and values in those units."""
+        cols = self._columns(names, units)
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["time"] + list(names))
-            for row in zip(*cols):
+            w.writerow([h for h, _ in cols])
+            for row in zip(*(v for _, v in cols)):
                 w.writerow([repr(float(v)) for v in row])
 
-    def plot(self, names=None, ax=None, path=None, title=None, mark_events=True):
-        """Plot signals against time; mode changes are marked by vertical lines."""
+    def plot(self, names=None, ax=None, path=None, title=None, mark_events=True, units=None):
+        """Plot signals against time; mode changes are marked by vertical lines. ``units``: display units
+        as in ``to_dataframe`` (``{"w": "rpm"}``); the y axis is labelled with the units shown."""
         try:
             import matplotlib
             if path is not None and ax is None:
@@ -185,8 +289,12 @@ class Result:
         fig = None
         if ax is None:
             fig, ax = plt.subplots(figsize=(9, 5))
+        shown = []
         for n in names:
-            ax.plot(self.t, self[n], label=n)
+            unit = self.display_unit(n, units)
+            shown.append(unit)
+            ax.plot(self.t, self.get(n, unit=unit) if unit != self.unit(n) else self[n], label=n)
+        ax.set_ylabel(_axis_label(shown))
         if mark_events:
             for i, ev in enumerate(self.events):
                 ax.axvline(ev.t, color="0.6", lw=0.7, ls="--", label="mode change" if i == 0 else None)

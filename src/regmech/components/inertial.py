@@ -42,7 +42,7 @@ class Fixed(Ground):
     """The ground: its ``flange`` stays at ``phi0`` [rad] (or ``s0`` [m] with
     ``domain="translational"``)."""
 
-    phi0 = Param(0.0, unit="rad or m", doc="position of the flange")
+    phi0 = Param(0.0, unit="rad", doc="position of the flange (m when translational)")
     flanges = (("flange", None),)
     position_param = "phi0"
 
