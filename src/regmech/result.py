@@ -59,7 +59,10 @@ class Stats:
     solver: str = ""
     wall_time: float = 0.0
     compile_time: float = 0.0
-    steps: int | None = 0       # None: the solver does not report it (IDA through scikit-sundae)
+    #: integration steps; IDA: step attempts (accepted and rejected), counted from the times of its residual
+    #: calls because scikit-sundae reports only residual and Jacobian counts (``extra["steps_are_attempts"]``);
+    #: None: the solver does not report it
+    steps: int | None = 0
     rhs_calls: int = 0
     jac_calls: int = 0
     segments: int = 0
@@ -73,7 +76,8 @@ class Stats:
     extra: dict = field(default_factory=dict)
 
     def __str__(self):
-        steps = "? steps" if self.steps is None else f"{self.steps} steps"
+        steps = "? steps" if self.steps is None else \
+            f"{self.steps} step{' attempts' if self.extra.get('steps_are_attempts') else 's'}"
         est = ""
         if self.error_estimate is not None:
             x = self.extra

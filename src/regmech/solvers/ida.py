@@ -145,6 +145,18 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
             deadline.check(t)
             unlimited(t, y, yp, res)
 
+    # IDA's step count: scikit-sundae reports only nfev and njev, so the steps are counted here as the
+    # distinct times of the residual calls (each attempted step evaluates at its new time; Newton
+    # iterations and Jacobian differences repeat that time; no initial-condition solve runs here)
+    attempts = [None, 0]
+    uncounted = resfn
+
+    def resfn(t, y, yp, res):
+        if t != attempts[0]:
+            attempts[0] = t
+            attempts[1] += 1
+        uncounted(t, y, yp, res)
+
     alg = c.algebraic if order.perm is None else np.sort(order.inv[c.algebraic])
     atol = order.to_solver(atol) if np.ndim(atol) else atol
     opts = dict(rtol=rtol, atol=atol, algebraic_idx=alg, max_num_steps=int(max_steps),
@@ -182,7 +194,9 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
         # the sparse solver needs the pattern, and scikit-sundae warns that its own finite-difference
         # Jacobian (which the pattern would enable) is unused because ours is given: expected here
         warnings.filterwarnings("ignore", message="Custom sparse Jacobian approximation")
-        return sksundae.ida.IDA(resfn, **opts)
+        solver = sksundae.ida.IDA(resfn, **opts)
+    solver.regmech_attempts = attempts
+    return solver
 
 
 def _blame(c, y, yp):
@@ -230,6 +244,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
                                      first_run_wall_time=first.wall_time)
     st.wall_time += first.wall_time
     st.rhs_calls += first.rhs_calls
+    st.steps += first.steps
     st.jac_calls += first.jac_calls
     st.compile_time = first.compile_time
     return again
@@ -257,7 +272,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     fr = c.friction
     modes = fr.start_modes(t_start) if fr else c.modes0
     c._t_right = bps[0] if bps else np.inf
-    stats = Stats(solver="ida", compile_time=compile_time, steps=None)   # scikit-sundae does not report steps
+    stats = Stats(solver="ida", compile_time=compile_time, steps=0)   # step attempts (see _make_solver)
+    stats.extra["steps_are_attempts"] = True
     if fr:
         y, yp, modes, _ = fr.settle(t_start, None, modes, initial=True)
     else:
@@ -474,6 +490,8 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     if reuse is not None and sol.status not in (0, 1):
         reuse.clear()            # a mode event (its bookkeeping stays on the events function) or a failure
     stats.segments += 1
+    stats.steps += solver.regmech_attempts[1]
+    solver.regmech_attempts[1] = 0        # a reused solver counts on from zero for the next segment
     stats.rhs_calls += int(getattr(sol, "nfev", 0) or 0)
     stats.jac_calls += int(getattr(sol, "njev", 0) or 0)
     if sol.status < 0:
