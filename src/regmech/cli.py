@@ -1,4 +1,8 @@
-"""Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``.
+"""Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``, ``regmech check``.
+
+``regmech check SCENE|FILE.py [--summary]`` prints the regularity report of a
+scene or of the models a Python file defines (exit status 1 when a model
+breaks a rule, the message naming the components and the fix).
 
 ``regmech demo --out DIR`` simulates ready-made drivetrain scenes (MSL
 First: motor, gear, elastic load; CoupledClutches: stick/slip; a car's
@@ -89,6 +93,53 @@ def _scenes(args) -> int:
     return 0
 
 
+def _load_models(target: str):
+    """The models named by ``target``: a library scene name, or a Python file whose module-level
+    ``Model`` objects are taken (or, when it defines none, the Model returned by a function ``build``,
+    ``model`` or ``make_model`` called without arguments). The file runs with ``__name__`` set to
+    ``"__regmech_check__"``, so its ``if __name__ == "__main__":`` part (a simulation, plots) does not."""
+    import runpy
+    from regmech.errors import RegmechError
+    from regmech.library import SCENES
+    from regmech.model import Model
+    if target in SCENES:
+        return [SCENES[target]()]
+    path = Path(target)
+    if not path.suffix == ".py":
+        raise RegmechError(f"'{target}' is neither a scene ({', '.join(sorted(SCENES))}) nor a .py file")
+    if not path.is_file():
+        raise RegmechError(f"no file '{target}'")
+    env = runpy.run_path(str(path), run_name="__regmech_check__")
+    models = [v for k, v in env.items() if isinstance(v, Model) and not k.startswith("_")]
+    if not models:
+        for name in ("build", "model", "make_model"):
+            fn = env.get(name)
+            if callable(fn):
+                out = fn()
+                if isinstance(out, Model):
+                    return [out]
+        raise RegmechError(f"'{target}' defines no Model at module level and no build()/model()/make_model() "
+                           f"function returning one; assign the model to a variable, e.g. m = rm.Model(...)")
+    return list({id(m): m for m in models}.values())
+
+
+def _check(args) -> int:
+    import warnings
+    from regmech.errors import ModelError
+    models = _load_models(args.target)
+    status = 0
+    for model in models:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")      # a stretched spectrum is listed in the report instead
+                report = model.summary() if args.summary else model.check()
+            print(report)
+        except ModelError as exc:                    # regularity, structure: the model has to change
+            print(f"Model '{model.name}': PROBLEMS\n  {exc}")
+            status = 1
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "modes":
@@ -112,6 +163,10 @@ def main(argv: list[str] | None = None) -> int:
                         "signal; default 1e-3 with the auto solver)")
     p.add_argument("--rtol", type=float, default=None, help="relative tolerance of a named --solver (with auto: IDA's)")
     p.set_defaults(func=_demo)
+    p = sub.add_parser("check", help="regularity check and summary of a scene or of the models in a .py file")
+    p.add_argument("target", help="scene name (regmech scenes lists them) or a Python file defining a Model")
+    p.add_argument("--summary", action="store_true", help="list the components by name (m.summary())")
+    p.set_defaults(func=_check)
     p = sub.add_parser("scenes", help="list the ready-made scenes")
     p.set_defaults(func=_scenes)
     sub.add_parser("modes", help="natural frequencies and mode shapes of a scene (regmech modes -h)")

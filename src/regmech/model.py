@@ -140,14 +140,31 @@ class Model:
 
     # -- analysis and simulation ---------------------------------------------
     def check(self, warn: bool = True):
-        """Regularity check (raises ``RegularityError`` / ``ModelError``); returns the report."""
+        """Regularity check: raises ``RegularityError`` / ``ModelError`` naming every violation, warns
+        (``RegularityWarning``) about a stretched spectrum; returns a short ``report.ModelReport`` (its
+        text: OK, components by family, states, constraints, friction devices, link frequencies; its
+        data as attributes). ``warn=False``: the regularity rules only, no compilation (the
+        ``RegularityReport``)."""
         from .structure.regularity import check_model
-        report = check_model(self)
-        if warn:
-            from .compile.system import compile_model
-            compiled = compile_model(self)
-            compiled.warn_spectrum()
-        return report
+        regularity = check_model(self)
+        if not warn:
+            return regularity
+        import warnings
+        from .report import model_report
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            self.compile().warn_spectrum()
+        for w in caught:             # shown as before, and kept in the report
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        return model_report(self, "check", regularity, [str(w.message) for w in caught])
+
+    def summary(self):
+        """What the model is made of, in a few lines (a ``report.ModelReport``): components by family,
+        states, constraints, friction devices, the range of the link frequencies. Checks regularity
+        on the way (raises as ``check`` does)."""
+        from .report import model_report
+        from .structure.regularity import check_model
+        return model_report(self, "summary", check_model(self))
 
     def compile(self):
         """Build (once, cached until the model changes) the compiled system."""
