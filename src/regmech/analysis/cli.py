@@ -50,8 +50,7 @@ def modes_main(argv: list[str]) -> int:
         model = builder()
         lin = model.linearize(t=args.t, modes=modes)
         result = modal(lin, k=args.k)
-        print(f"{model.name}: {lin.n} degrees of freedom ({', '.join(lin.coords)}), "
-              f"inputs {lin.all_inputs or 'none'}")
+        print(dof_line(model.name, lin))
         print()
         print(result)
         if args.out:
@@ -65,6 +64,19 @@ def modes_main(argv: list[str]) -> int:
         print(f"regmech modes: {exc}", file=sys.stderr)
         return 2
     return 0
+
+
+def dof_line(name: str, lin) -> str:
+    """The head line of ``regmech modes``: the degrees of freedom (the independent coordinates the modes
+    are computed in, one per undamped mode) and the masses (the columns of the mode-shape table, more
+    when gears or rigid links make some masses follow others)."""
+    coords = list(lin.coords)
+    shown = ", ".join(coords[:8]) + (f", ... ({len(coords)})" if len(coords) > 8 else "")
+    masses = len(lin.mass_coordinates())
+    follow = "" if masses == lin.n else \
+        f"; the mode-shape table has all {masses} masses, {masses - lin.n} of them moving with these through gears or rigid links"
+    return (f"{name}: {lin.n} degrees of freedom, so {lin.n} modes (independent coordinates {shown}{follow}); "
+            f"inputs {lin.all_inputs or 'none'}")
 
 
 def _plots(result, lin, out: Path, fmax, harmonic_response) -> None:

@@ -56,6 +56,9 @@ class DampedModes:
     eigenvalues: np.ndarray
     shapes: np.ndarray
     rigid: np.ndarray
+    #: the undamped mode (0-based index into ``ModalResult``'s modes) each root belongs to, by the best
+    #: match of shapes (``match_undamped``); -1 unmatched; None when computed without the undamped modes
+    mode_index: np.ndarray | None = None
 
     @property
     def natural_hz(self) -> np.ndarray:
@@ -78,11 +81,52 @@ class DampedModes:
     def oscillatory(self) -> np.ndarray:
         return self.eigenvalues.imag > 0
 
+    def labels(self) -> list[str]:
+        """Row label of each root: ``mode k`` with k the number of the undamped mode it belongs to (so both
+        tables number modes alike; ``root j`` when not matched); a real root adds ``(real)`` (and a second
+        real root of the same mode ``(real 2)``), a growing one ``(real, unstable)``."""
+        out, seen = [], {}
+        number = self.mode_index if self.mode_index is not None else np.arange(len(self.eigenvalues))
+        for j, (lam, k) in enumerate(zip(self.eigenvalues, number)):
+            base = f"mode {k + 1}" if k >= 0 else f"root {j + 1}"
+            if lam.imag > 0 or lam == 0:
+                out.append(base)
+                continue
+            seen[base] = seen.get(base, 0) + 1
+            tag = "real, unstable" if lam.real > 0 else "real"
+            out.append(f"{base} ({tag}{'' if seen[base] == 1 else ' ' + str(seen[base])})")
+        counts: dict = {}
+        for j, label in enumerate(out):           # labels stay unique (Table.row looks rows up by label)
+            counts[label] = counts.get(label, 0) + 1
+            if counts[label] > 1:
+                out[j] = f"{label} #{counts[label]}"
+        return out
+
     def table(self) -> Table:
+        """Natural and damped frequency, damping ratio and decay rate per root, numbered by undamped mode
+        (``labels``), with notes explaining real roots."""
         data = np.column_stack([self.natural_hz, self.damped_hz, self.damping_ratio, self.decay_rate])
-        return Table(data, [f"mode {i + 1}" for i in range(len(self.eigenvalues))],
+        labels = self.labels()
+        order = np.arange(len(labels))
+        if self.mode_index is not None:
+            key = np.where(self.mode_index >= 0, self.mode_index, len(labels) + np.arange(len(labels)))
+            order = np.lexsort((np.abs(self.eigenvalues), key))
+        notes = []
+        real = (self.eigenvalues.imag == 0) & (self.eigenvalues != 0)
+        if np.any(real & (self.eigenvalues.real < 0)):
+            notes.append("(real): a real root, damping ratio 1: the motion decays without oscillating as "
+                         "exp(-decay t) (an overdamped mode gives two of them; a rigid-body mode with damping "
+                         "or a drag to the ground gives one besides 0)")
+        if np.any(real & (self.eigenvalues.real > 0)):
+            notes.append("(real, unstable): a real root > 0, shown with damping ratio -1 and a negative decay: "
+                         "the motion grows as exp(|decay| t) without oscillating, so the operating point is "
+                         "unstable (negative damping, e.g. a friction or tyre force falling with slip speed)")
+        if np.any(self.eigenvalues == 0):
+            notes.append("0 Hz rows: rigid-body modes (the masses turn or slide together freely)")
+        return Table(data[order], [labels[i] for i in order],
                      ["natural [Hz]", "damped [Hz]", "damping ratio", "decay [1/s]"],
-                     title="damped modes", index_name="mode")
+                     title="damped modes (numbered as the undamped modes they belong to)", index_name="mode",
+                     notes=notes)
 
 
 @dataclass
@@ -144,7 +188,9 @@ class ModalResult:
 
     @cached_property
     def damped(self) -> DampedModes:
-        return damped_modes(self.lin, k=self.k, sigma=self.sigma, n_rigid=int(self.rigid.sum()), scale=self.scale)
+        dm = damped_modes(self.lin, k=self.k, sigma=self.sigma, n_rigid=int(self.rigid.sum()), scale=self.scale)
+        dm.mode_index = match_undamped(self, dm)
+        return dm
 
     def sensitivities(self):
         from .sensitivity import sensitivities
@@ -344,6 +390,45 @@ def damped_modes(lin, k: int | None = None, sigma: float = 0.0, n_rigid: int = 0
     norms = np.linalg.norm(vec, axis=0)
     vec = vec / np.where(norms > 0, norms, 1.0)
     return DampedModes(eigenvalues=lam, shapes=vec, rigid=(lam == 0))
+
+
+def match_undamped(undamped: ModalResult, damped: DampedModes) -> np.ndarray:
+    """The undamped mode each damped root belongs to (0-based; -1 if none is left).
+
+    Pairs are taken greedily by the modal assurance criterion with the mass matrix,
+    ``MAC = |phi^T M u|^2 / ((phi^T M phi)(u^H M u))``, highest first (ties: nearest natural
+    frequency); each undamped mode takes one complex root (a pair, listed once) or up to two real roots
+    (an overdamped mode, or a rigid one with damping to ground: 0 and the decay root).
+    """
+    phi, u = undamped.shapes, damped.shapes
+    nd, nu = u.shape[1], phi.shape[1]
+    index = np.full(nd, -1)
+    if nd == 0 or nu == 0:
+        return index
+    M = undamped.lin.M
+    Mphi = np.asarray(M @ phi)
+    Mu = np.asarray(M @ u)
+    num = np.abs(Mphi.T @ u) ** 2                                    # nu x nd (phi real)
+    den = np.outer(np.einsum("ij,ij->j", phi, Mphi), np.real(np.einsum("ij,ij->j", u.conj(), Mu)))
+    mac = num / np.where(den > 0, den, 1.0)
+    fu = undamped.frequencies_hz
+    fd = damped.natural_hz
+    gap = np.abs(fu[:, None] - fd[None, :]) / max(float(np.max(fu, initial=0.0)), float(np.max(fd, initial=0.0)), 1e-300)
+    order = np.lexsort((gap.ravel(), -np.round(mac.ravel(), 6)))
+    capacity = np.full(nu, 2)
+    has_zero = np.zeros(nu, bool)
+    lam = damped.eigenvalues
+    need = np.where(lam.imag > 0, 2, 1)
+    for flat in order:
+        i, j = divmod(int(flat), nd)
+        if index[j] >= 0 or capacity[i] < need[j]:
+            continue
+        if lam[j] == 0 and (has_zero[i] or not undamped.rigid[i]):
+            continue          # a rigid mode has one root at 0 (its partner is 0 too, or a decay root)
+        index[j] = i
+        capacity[i] -= need[j]
+        has_zero[i] |= lam[j] == 0
+    return index
 
 
 def _companion(lin, dense: bool):

@@ -15,12 +15,14 @@ class Table:
     a fixed-width text table; ``table.to_dataframe()`` a pandas DataFrame.
     """
 
-    def __init__(self, data, index, columns, title: str = "", index_name: str = ""):
+    def __init__(self, data, index, columns, title: str = "", index_name: str = "", notes=()):
         self.data = np.asarray(data, float).reshape(len(index), len(columns))
         self.index = list(index)
         self.columns = list(columns)
         self.title = title
         self.index_name = index_name
+        #: sentences printed under the table (what a row label or value means)
+        self.notes = list(notes)
 
     @property
     def shape(self):
@@ -69,6 +71,7 @@ class Table:
         lines.append("  ".join([self.index_name.ljust(w0)] + [h.rjust(w) for h, w in zip(heads, widths)]))
         for label, row in zip(labels, cells):
             lines.append("  ".join([label.ljust(w0)] + [c.rjust(w) for c, w in zip(row, widths)]))
+        lines += [f"  {n}" for n in self.notes]
         return "\n".join(lines)
 
     def __repr__(self) -> str:
