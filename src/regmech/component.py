@@ -219,6 +219,13 @@ def _with_parameter_section(cls, doc: str) -> str:
     return inspect.cleandoc(doc) + "\n".join(lines) + "\n"
 
 
+def refuse_positional(cls, args) -> None:
+    """Raise the ``ParameterError`` of a call with parameters after the name given by position (a class
+    with its own ``__new__`` calls this too)."""
+    if len(args) > 1:
+        raise ParameterError(_positional_message(cls, args))
+
+
 def _positional_message(cls, args) -> str:
     """The error for ``Inertia("x", 1.0)``: the class's parameters in order and the call it probably meant."""
     sig = cls.__signature__
@@ -260,8 +267,7 @@ class Component:
     def __new__(cls, *args, **kwargs):
         # parameters are keywords (Inertia("J1", J=1.0)); a positional one would otherwise end in a bare
         # TypeError from __init__ that names neither the class's parameters nor their order
-        if len(args) > 1:
-            raise ParameterError(_positional_message(cls, args))
+        refuse_positional(cls, args)
         return super().__new__(cls)
 
     def __init__(self, name: str, *, domain: str | None = None, **params: Any):

@@ -15,7 +15,7 @@ import numpy as np
 import sympy
 
 from .._numbers import as_real
-from ..component import Device, Param
+from ..component import Device, Param, refuse_positional
 from ..errors import ParameterError
 from ..ports import ROTATIONAL, TRANSLATIONAL
 
@@ -101,6 +101,7 @@ class Engine(Device):
 
     def __new__(cls, name=None, *args, **params):
         public = cls._public or cls
+        refuse_positional(public, (name, *args))
         points = _as_points(params.get("torque_map"))
         if points is None:
             return object.__new__(public)      # __init__ reports the malformed map
