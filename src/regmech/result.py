@@ -199,13 +199,7 @@ class Result:
         return units[name]
 
     def _signal_unit(self, name: str) -> str | None:
-        components = self._traj.c.model.components
-        parts = name.split(".")
-        for i in range(len(parts) - 1, 0, -1):       # longest component name first ("wheel.J" before "wheel")
-            comp = components.get(".".join(parts[:i]))
-            if comp is not None:
-                return comp.signal_unit(".".join(parts[i:]))
-        return None
+        return units_mod.signal_unit(self._traj.c.model.components, name)
 
     def get(self, name: str, unit: str | None = None) -> np.ndarray:
         """Signal ``name`` (as ``res[name]``), in display unit ``unit`` when given (``"rpm"``, ``"deg"``,

@@ -30,7 +30,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import units
 from .errors import ModelError, ParameterError
+from .result import Result
 from .structure import reduction as R
 
 #: shares of a Scene's accuracy: each simulation's contract, and the reduced-against-full check (module docstring)
@@ -44,9 +46,10 @@ ALL_PASSES = SAFE_PASSES + ("rigidify", "ground_heavy")
 class SceneResult:
     """A reduced model's Result that also answers for the full model's requested outputs."""
 
-    def __init__(self, result, maps):
+    def __init__(self, result, maps, model=None):
         self._res = result
         self._maps = maps
+        self._model = model          # the full model: the units of the outputs it answers for
         self.t = result.t
         self.events = result.events
         self.stats = result.stats
@@ -63,6 +66,23 @@ class SceneResult:
     @property
     def names(self):
         return sorted(set(self._res.names) | set(self._maps))
+
+    def unit(self, name):
+        """SI unit of ``name`` (an output of the full model or a signal of the reduced one)."""
+        if name in self._maps and self._model is not None:
+            return units.signal_unit(self._model.components, name)
+        return self._res.unit(name)
+
+    # the Result methods that read signals by name, reading them through this object (so the full
+    # model's outputs answer too): display units, values at an instant, tables, plots
+    get = Result.get
+    at = Result.at
+    final = Result.final
+    display_unit = Result.display_unit
+    _columns = Result._columns
+    to_csv = Result.to_csv
+    to_dataframe = Result.to_dataframe
+    plot = Result.plot
 
     def __getattr__(self, attr):
         return getattr(self._res, attr)
@@ -197,7 +217,7 @@ class Scene:
     def simulate(self, **options):
         red = self.reduction
         res = red.model.simulate(self.t_end, t_start=self.t_start, **self._options(options))
-        return SceneResult(res, red.outputs)
+        return SceneResult(res, red.outputs, self.model)
 
     def simulate_full(self, **options):
         return self.model.simulate(self.t_end, t_start=self.t_start, **self._options(options))

@@ -146,6 +146,18 @@ def convert(values, si_unit: str | None, display: str, signal: str = ""):
     return np.asarray(values, float) / f if f != 1.0 else np.asarray(values, float)
 
 
+def signal_unit(components: dict, name: str) -> str | None:
+    """SI unit of signal ``name`` of a model with ``components`` (name -> component): the longest
+    component name that ``name`` starts with (``"wheel.J.w"``: part ``wheel.J``, signal ``w``) answers
+    through ``Component.signal_unit``; None if no component or no unit is found."""
+    parts = name.split(".")
+    for i in range(len(parts) - 1, 0, -1):
+        comp = components.get(".".join(parts[:i]))
+        if comp is not None:
+            return comp.signal_unit(".".join(parts[i:]))
+    return None
+
+
 def label(name: str, unit: str | None) -> str:
     """``"name [unit]"``; the bare name when dimensionless (1) or unknown."""
     return f"{name} [{unit}]" if unit and unit != "1" else name

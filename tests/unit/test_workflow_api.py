@@ -322,3 +322,25 @@ def test_modes_head_line_matches_the_tables(capsys):
     assert modes_main(["vehicle_launch"]) == 0
     head = capsys.readouterr().out.splitlines()[0]
     assert "7 degrees of freedom, so 7 modes" in head and "all 13 masses" in head
+
+
+def test_scene_result_outputs_of_the_full_model_have_units_and_display_units():
+    m = rm.Model("scene_units")
+    f = m.add(Fixed("ground"))
+    eng = m.add(Torque("engine", tau=30.0))
+    J0 = m.add(Inertia("flywheel", J=0.3, phi0=0.0, w0=0.0))
+    g = m.add(rm.components.IdealGear("gear", ratio=4.0))
+    J1 = m.add(Inertia("out", J=0.5))
+    s = m.add(rm.components.Shaft("shaft", stiffness=1e8, damping=1.0))
+    J2 = m.add(Inertia("load", J=20.0))
+    d = m.add(Damper("drag", d=5.0))
+    for a, b in [(eng.flange, J0.flange_a), (J0.flange_b, g.flange_a), (g.flange_b, J1.flange_a),
+                 (J1.flange_b, s.flange_a), (s.flange_b, J2.flange_a), (J2.flange_b, d.flange_a),
+                 (d.flange_b, f.flange)]:
+        m.connect(a, b)
+    sc = rm.Scene(m, t_end=0.2, outputs=["load.w", "flywheel.w"], band_hz=20.0)
+    res = sc.simulate()
+    for n in ("load.w", "flywheel.w"):
+        assert res.unit(n) == "rad/s"
+        np.testing.assert_allclose(res.get(n, unit="rpm"), res[n] * 60 / (2 * math.pi))
+        assert res.final(n) == res[n][-1]
