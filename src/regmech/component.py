@@ -48,6 +48,10 @@ class Param:
     ``"table"`` ((n, 2) points), ``"choice"`` (one of ``choices``),
     ``"any"``. ``optional=True`` also admits None.
 
+    ``unit``: the SI unit (``"N m/rad"``, ``"kg m^2"``; ``"1"`` dimensionless; for a table the units of its
+    columns, ``"(rad/s, N m)"``), written for the class's default kind of flange: an instance of the
+    other kind reads it translated (``unit_in``). Signatures, docstrings and error messages show it.
+
     A signal is stored bound to the component and the parameter
     (``signals.as_signal``): its values are checked where the solvers read
     them. ``bounds=(lo, hi)`` (None: open) is a signal's documented range,
@@ -213,7 +217,8 @@ def _with_parameter_section(cls, doc: str) -> str:
         default = "required" if spec.default is REQUIRED else f"default {spec.default!r}"
         other = spec.unit_in(TRANSLATIONAL if cls.default_domain == ROTATIONAL else ROTATIONAL)
         alt = f" ([{other}] when translational)" if switchable and other != spec.unit else ""
-        lines.append(f"{n} : {spec.type_text()}{alt}, {default}")
+        dimensionless = ", dimensionless" if spec.unit == "1" else ""
+        lines.append(f"{n} : {spec.type_text()}{alt}{dimensionless}, {default}")
         if spec.doc:
             lines.append(f"    {spec.doc}")
     return inspect.cleandoc(doc) + "\n".join(lines) + "\n"

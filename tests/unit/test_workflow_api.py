@@ -49,6 +49,24 @@ def test_every_component_class_has_a_real_signature(cls):
             assert f"\n{pname} : " in cls.__doc__
 
 
+#: components/friction.py is being reorganised in parallel (issue 16 hybrid work): its dimensionless
+#: parameters (mu, peak, f_normalized, LossyGear.ratio) and tables (mu_table, BearingFriction.tau_table)
+#: get their units there; until then they are the only ones without
+FRICTION_MODULE = "regmech.components.friction"
+
+
+@pytest.mark.parametrize("cls", PUBLIC + _library_classes(), ids=lambda c: c.__name__)
+def test_every_parameter_declares_its_unit(cls):
+    missing = [n for n, s in cls.param_specs().items()
+               if not s.unit and s.check not in ("choice", "any") and vars_owner(cls, n).__module__ != FRICTION_MODULE]
+    assert not missing, f"{cls.__name__}: parameters {missing} declare no unit (unit='1' when dimensionless)"
+
+
+def vars_owner(cls, name):
+    """The class that declares parameter ``name``."""
+    return next(k for k in cls.__mro__ if name in vars(k))
+
+
 def test_signature_shows_required_first_and_domain_where_it_is_chosen():
     assert str(inspect.signature(Inertia)) == \
         "(name: str, *, J: float > 0 [kg m^2], phi0: float [rad] | None = None, w0: float [rad/s] | None = None)"

@@ -51,7 +51,7 @@ class Differential(Device):
     """
 
     kind = "rigid"
-    ratio = Param(1.0, check="nonzero", doc="carrier angle / mean angle of the sides")
+    ratio = Param(1.0, check="nonzero", unit="1", doc="carrier angle / mean angle of the sides")
     flanges = (("carrier", ROTATIONAL), ("left", ROTATIONAL), ("right", ROTATIONAL),
                ("support", ROTATIONAL, True))
     rel_names = {ROTATIONAL: (None, None, None, "tau")}
@@ -83,7 +83,7 @@ class Planetary(Device):
     """
 
     kind = "rigid"
-    ratio = Param(check="positive", doc="number of ring teeth / number of sun teeth")
+    ratio = Param(check="positive", unit="1", doc="number of ring teeth / number of sun teeth")
     flanges = (("sun", ROTATIONAL), ("carrier", ROTATIONAL), ("ring", ROTATIONAL))
     rel_names = {ROTATIONAL: (None, None, None, "tau")}
 
@@ -109,7 +109,7 @@ class LossyPlanetary(LossyGear):
     train rolling forward/backward or stuck), ``<name>.sun.tau`` etc.
     """
 
-    ratio = Param(check="positive", doc="number of ring teeth / number of sun teeth")
+    ratio = Param(check="positive", unit="1", doc="number of ring teeth / number of sun teeth")
     flanges = (("sun", ROTATIONAL), ("carrier", ROTATIONAL), ("ring", ROTATIONAL))
 
     def rows(self):
@@ -129,11 +129,11 @@ class LimitedSlipDifferential(Subsystem):
     about ``2 * mu * cgeo * preload * peak``; a very large preload locks the differential.
     """
 
-    ratio = Param(1.0, check="nonzero", doc="carrier angle / mean angle of the sides")
+    ratio = Param(1.0, check="nonzero", unit="1", doc="carrier angle / mean angle of the sides")
     preload = Param(check="nonnegative", unit="N", doc="clutch normal force")
-    mu = Param(0.1, check="nonnegative", doc="clutch friction coefficient")
+    mu = Param(0.1, check="nonnegative", unit="1", doc="clutch friction coefficient")
     cgeo = Param(0.05, check="nonnegative", unit="m", doc="clutch effective radius x surfaces")
-    peak = Param(1.0, check="positive", doc="static over kinetic friction")
+    peak = Param(1.0, check="positive", unit="1", doc="static over kinetic friction")
     J_side = Param(0.01, check="positive", unit="kg m^2", doc="inertia of each side gear")
     ports = {"carrier": "diff.carrier", "left": "side_left.flange_b", "right": "side_right.flange_b"}
 

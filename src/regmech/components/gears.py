@@ -15,7 +15,7 @@ class IdealGear(Device):
     """
 
     kind = "rigid"
-    ratio = Param(check="nonzero", doc="transmission ratio phi_a/phi_b")
+    ratio = Param(check="nonzero", unit="1", doc="transmission ratio phi_a/phi_b")
     flanges = (("flange_a", ROTATIONAL), ("flange_b", ROTATIONAL), ("support", ROTATIONAL, True))
     rel_names = {ROTATIONAL: (None, None, None, "tau")}
 

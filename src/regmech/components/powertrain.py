@@ -90,7 +90,7 @@ class Engine(Device):
     kind = "compliant"
     is_source = True
     torque_map = _MapParam(check="table", unit="(rad/s, N m)", doc="full-load torque vs speed")
-    throttle = Param(1.0, check="signal", doc="fraction of full load (0..1)")
+    throttle = Param(1.0, check="signal", unit="1", doc="fraction of full load (0..1)")
     flanges = (("flange", ROTATIONAL), ("support", ROTATIONAL, True))
     rel_names = {ROTATIONAL: (None, None, None, "tau")}
 
