@@ -5,6 +5,13 @@
 changes, ``res.stats`` (solver, wall time, steps, residual/RHS calls,
 Jacobians, the estimated global error of a fixed-step run, ...),
 ``res.to_dataframe()``, ``res.to_csv(path)``, ``res.plot()``.
+
+Units: every signal is SI; ``res.unit(name)`` says which unit, and
+``res.get(name, unit="rpm")``, ``res.at``, ``res.final``, ``to_dataframe``,
+``to_csv`` and ``plot`` take display units (``regmech.units``). Values at an
+instant are methods, name first: ``res.at(name, t)`` (linear interpolation,
+t a number or an array; after the event at an event instant) and
+``res.final(name)`` (the last output point; ``res.final()`` all signals).
 """
 
 from __future__ import annotations
