@@ -104,12 +104,16 @@ class Stats:
                 f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}{auto}")
 
 
-def _axis_label(units) -> str:
-    """y-axis label for signals shown in ``units``: ``[rad/s]``, or all of them when they differ."""
-    found = list(dict.fromkeys(u if u else "unit unknown" for u in units))
-    if not found:
-        return ""
-    return "[" + "], [".join(found) + "]" if len(found) > 1 else f"[{found[0]}]"
+def _axis_label(pairs) -> str:
+    """y-axis label for signals given as (SI unit, unit shown): ``speed [rpm]``; all of them, joined, when
+    they differ (``speed [rad/s], torque [N m]``)."""
+    found = []
+    for si, shown in pairs:
+        what = units_mod.QUANTITIES.get(si or "", "value")
+        text = f"{what} [{shown}]" if shown and shown != "1" else (what if shown else "value (unit unknown)")
+        if text not in found:
+            found.append(text)
+    return ", ".join(found)
 
 
 class Result:
@@ -297,7 +301,7 @@ class Result:
         shown = []
         for n in names:
             unit = self.display_unit(n, units)
-            shown.append(unit)
+            shown.append((self.unit(n), unit))
             ax.plot(self.t, self.get(n, unit=unit) if unit != self.unit(n) else self[n], label=n)
         ax.set_ylabel(_axis_label(shown))
         if mark_events:

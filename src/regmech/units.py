@@ -72,6 +72,10 @@ DISPLAY_UNITS: dict[str, dict[str, float]] = {
     "W": {"W": 1.0, "kW": 1e3, "hp": 745.69987158227022},
     "s": {"s": 1.0, "ms": 1e-3},
 }
+#: what a signal of each SI unit is, for axis labels ("speed [rpm]")
+QUANTITIES = {"rad": "angle", "rad/s": "speed", "rad/s^2": "angular acceleration", "N m": "torque",
+              "m": "position", "m/s": "velocity", "m/s^2": "acceleration", "N": "force", "J": "energy",
+              "W": "power", "1": "mode", "A": "current", "V": "voltage", "s": "time"}
 #: accepted spellings of the display units above
 ALIASES = {"Nm": "N m", "N*m": "N m", "N.m": "N m", "kNm": "kN m", "kN*m": "kN m", "kN.m": "kN m",
            "Nmm": "N mm", "1/min": "rpm", "rev/min": "rpm", "RPM": "rpm", "kph": "km/h", "km/hr": "km/h",

@@ -197,10 +197,10 @@ def test_plot_labels_the_y_axis_with_the_units_shown():
     import matplotlib.pyplot as plt
     res = _run("coupled_clutches", 0.1)
     ax = res.plot(["J1.w", "J2.w"], units={"w": "rpm"})
-    assert ax.get_ylabel() == "[rpm]"
+    assert ax.get_ylabel() == "speed [rpm]"
     np.testing.assert_allclose(ax.lines[0].get_ydata(), res.get("J1.w", unit="rpm"))
     ax2 = res.plot(["J1.w", "clutch1.tau"])
-    assert ax2.get_ylabel() == "[rad/s], [N m]"
+    assert ax2.get_ylabel() == "speed [rad/s], torque [N m]"
     plt.close("all")
 
 
