@@ -147,6 +147,18 @@ class Recorder:
         self.left.append(bool(left))
         self.modes.append(np.array(modes, int).copy())
 
+    def add_rows(self, t, Y, YP, modes, left):
+        """Several rows at once (``t``, ``left``: 1-D; ``Y``, ``YP``: one row each, arrays the caller does not
+        change afterwards: their rows are kept as views). One mode set for all of them."""
+        k = len(t)
+        if k == 0:
+            return
+        self.t.extend(np.asarray(t, float).tolist())
+        self.y.extend(np.asarray(Y, float))
+        self.yp.extend(np.asarray(YP, float))
+        self.left.extend(np.asarray(left, bool).tolist())
+        self.modes.extend([np.array(modes, int)] * k)
+
     def arrays(self):
         Y = np.array(self.y)
         YP = np.array(self.yp)

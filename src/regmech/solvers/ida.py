@@ -491,10 +491,11 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
             f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}; components most involved: "
             f"{_blame(c, last_y, last_yp)}. {hint}.{c.stiffness_hint()}")
     n_rows = len(sol.t)
-    for k in range(1, n_rows):
-        if sol.status == 2 and k == n_rows - 1:
-            break                 # the event row is recorded by the caller, before and after settling
-        if k < len(record) and not record[k]:
-            continue
-        rec.add(sol.t[k], sol.y[k], sol.yp[k], modes, left=(sol.t[k] >= t_stop))
+    # rows 1.. of the solution, all at once; the event row (status 2) is recorded by the caller, before and
+    # after settling; rows beyond ``tspan`` (none in IDA's normal mode) would be kept
+    end = n_rows - 1 if sol.status == 2 else n_rows
+    keep = np.arange(1, max(end, 1))
+    keep = keep[np.concatenate([record, np.ones(max(0, end - len(record)), bool)])[keep]]
+    T = np.asarray(sol.t)[keep]
+    rec.add_rows(T, np.asarray(sol.y)[keep], np.asarray(sol.yp)[keep], modes, T >= t_stop)
     return sol
