@@ -35,6 +35,11 @@ from .assembly import KernelTerms, input_entries, output_entries
 
 DENSE_MAX = 6000
 
+try:       # the kernel behind scipy's CSR matrix-vector product, without its per-call dispatch (a few us)
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec
+except ImportError:      # pragma: no cover - a scipy that moved it: the public product is used
+    _csr_matvec = None
+
 
 def _operator(rows, cols, vals, shape):
     """Sum duplicates; dense ndarray when small, CSR otherwise."""
@@ -113,6 +118,10 @@ class EvaluationPlan:
                               for g, start, _, _ in self.input_slots for j, b in enumerate(g.banks)]
         self.L = self._residual_matrix(c, linear_terms, kterms)
         self._dense = isinstance(self.L, np.ndarray)
+        self._csr = None
+        if not self._dense and _csr_matvec is not None and self.L.format == "csr" and self.L.dtype == np.float64:
+            L = self.L
+            self._csr = (L.shape[0], L.shape[1], L.indptr, L.indices, L.data, np.zeros(L.shape[0]))
         self._build_kernel_arguments(c)
         self._build_device_outputs(c, kterms)
 
@@ -294,6 +303,12 @@ class EvaluationPlan:
                 return
             except (TypeError, ValueError):        # an ``out`` that is not a contiguous float vector
                 pass
+        elif self._csr is not None:
+            n_row, n_col, indptr, indices, data, acc = self._csr
+            acc.fill(0.0)
+            _csr_matvec(n_row, n_col, indptr, indices, data, buf, acc)     # acc += L buf, as ``L @ buf`` does
+            out[:] = acc
+            return
         out[:] = self.L @ buf
 
     def nonlinear_weights_into(self, w, t: float, y, left: bool) -> None:

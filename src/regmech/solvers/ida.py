@@ -125,7 +125,13 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
                  deadline=None):
     import sksundae
 
-    if order.perm is None:
+    if order.perm is None and not c.mf:
+        plan = c._plan
+
+        def resfn(t, y, yp, res):
+            # ``CompiledSystem.residual`` without friction rows, one call less per evaluation
+            plan.residual(t, y, yp, t >= c._t_right, res)
+    elif order.perm is None:
         def resfn(t, y, yp, res):
             c.residual(t, y, yp, res, modes)
     else:
