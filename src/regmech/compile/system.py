@@ -602,7 +602,14 @@ class CompiledSystem:
         return k
 
     def link_frequencies(self) -> np.ndarray:
-        """Local frequency estimate [rad/s] of every compliant row: ``sqrt(k * sum_j S_rj^2 / m_j)``."""
+        """Local frequency estimate [rad/s] of every compliant row: ``sqrt(k * sum_j S_rj^2 / m_j)``
+        (once per compiled system, as ``stiffness_estimate``)."""
+        w = self.__dict__.get("_link_frequencies")
+        if w is None:
+            w = self._link_frequencies = self._link_frequencies_now()
+        return w.copy()
+
+    def _link_frequencies_now(self):
         k = self.stiffness_estimate()
         inv_m = np.where(self.mass > 0, 1.0 / np.where(self.mass > 0, self.mass, 1.0), 0.0)
         S2 = self.Sc.multiply(self.Sc)

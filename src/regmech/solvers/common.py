@@ -134,11 +134,13 @@ def signal_breakpoints(model, t_start, t_end):
 
 
 class Recorder:
-    """Collects output rows (t, y, yp, left flag, modes)."""
+    """Collects output rows (t, y, yp, left flag, modes): one at a time (``add``) or a block at a time
+    (``add_rows``, kept as the block: a segment of IDA's output is not split into rows and joined again)."""
 
     def __init__(self, modes_width: int):
         self.t, self.y, self.yp, self.left, self.modes = [], [], [], [], []
         self.mw = modes_width
+        self._blocks = []          # (t, Y, YP, left, modes) arrays, in order, with the single rows between
 
     def add(self, t, y, yp, modes, left=False):
         self.t.append(float(t))
@@ -147,27 +149,37 @@ class Recorder:
         self.left.append(bool(left))
         self.modes.append(np.array(modes, int).copy())
 
+    def _flush(self):
+        """The single rows added since the last block, as a block."""
+        if self.t:
+            k = len(self.t)
+            self._blocks.append((np.array(self.t), np.array(self.y), np.array(self.yp), np.array(self.left),
+                                 np.array(self.modes).reshape(k, self.mw)))
+            self.t, self.y, self.yp, self.left, self.modes = [], [], [], [], []
+
     def add_rows(self, t, Y, YP, modes, left):
         """Several rows at once (``t``, ``left``: 1-D; ``Y``, ``YP``: one row each, arrays the caller does not
-        change afterwards: their rows are kept as views). One mode set for all of them."""
+        change afterwards: they are kept as they are). One mode set for all of them."""
         k = len(t)
         if k == 0:
             return
-        self.t.extend(np.asarray(t, float).tolist())
-        self.y.extend(np.asarray(Y, float))
-        self.yp.extend(np.asarray(YP, float))
-        self.left.extend(np.asarray(left, bool).tolist())
-        self.modes.extend([np.array(modes, int)] * k)
+        self._flush()
+        mode_rows = np.broadcast_to(np.array(modes, int).reshape(1, self.mw), (k, self.mw))
+        self._blocks.append((np.asarray(t, float), np.asarray(Y, float), np.asarray(YP, float),
+                             np.asarray(left, bool), mode_rows))
 
     def arrays(self):
-        Y = np.array(self.y)
-        YP = np.array(self.yp)
+        self._flush()
+        if len(self._blocks) == 1:
+            T, Y, YP, L, modes = self._blocks[0]
+            T, Y, YP, L, modes = T.copy(), np.array(Y), np.array(YP), L.copy(), np.array(modes)
+        else:
+            T, Y, YP, L, modes = (np.concatenate(parts) for parts in zip(*self._blocks))
         if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(YP))):
             k = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | ~np.all(np.isfinite(YP), axis=1))[0][0])
-            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.t[k]:.6g}; the model or the "
+            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={T[k]:.6g}; the model or the "
                                   f"solver settings are unstable there (try a tighter tolerance or a stable solver)")
-        modes = np.array(self.modes).reshape(len(self.t), self.mw)
-        return np.array(self.t), Y, YP, np.array(self.left), modes
+        return T, Y, YP, L, modes
 
 
 def scale_hint(c) -> str:

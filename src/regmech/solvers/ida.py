@@ -36,7 +36,7 @@ from ..result import Event, Result, Stats
 from . import register
 from .common import (Recorder, StateScale, check_link_spread, check_times, output_grid, run_deadline,
                      signal_breakpoints)
-from .options import (Choice, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
+from .options import (Choice, Flag, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
                       rtol_option, stiff_check_option)
 
 IDA_OPTIONS = OptionSet(
@@ -51,6 +51,8 @@ IDA_OPTIONS = OptionSet(
     max_events=max_events_option(),
     max_steps=Integer("most IDA steps in one output interval (default 50000)", 1),
     stiff_check=stiff_check_option(),
+    native=Flag("run IDA with compiled callbacks and no Python in its loop where the model allows it "
+                "(linear models; needs numba: see regmech.solvers.ida_native; default False)"),
     **chatter_options(),
 )
 
@@ -122,8 +124,19 @@ def choose_linsolver(c, dense_max=60, band_max=40, dense_wide_max=400):
 
 
 def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order, max_steps=50000,
-                 deadline=None):
+                 deadline=None, native=False):
     import sksundae
+
+    if native:
+        # an eligible model (``ida_native.eligible``, checked by the caller): no callbacks into Python
+        from .ida_native import NativeIDA
+        lband = uband = 0
+        if linsolver == "band":
+            P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
+            pat = P.tocoo()
+            lband = int(max(0, (pat.row - pat.col).max(initial=0)))
+            uband = int(max(0, (pat.col - pat.row).max(initial=0)))
+        return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband)
 
     if order.perm is None and not c.mf:
         plan = c._plan
@@ -191,6 +204,28 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
         return sksundae.ida.IDA(resfn, **opts)
 
 
+#: signal classes whose value is a function of time and of their (scalar) attributes alone
+_PURE_SIGNALS = ("Constant", "Sine", "Step", "Ramp", "Pulse")
+
+
+def _start_values(model, c, t_start, modes):
+    """``c.initial_y(t_start, modes)`` (a projection and two acceleration solves), remembered on the compiled
+    system for the next run from the same start when every signal of the model is one of regmech's own
+    scalar-parameter signals (a user's callable may not give the same values twice)."""
+    from .common import _signals
+    key = [float(t_start), float(c._t_right), tuple(int(m) for m in modes)]
+    for comp, pname, sig in _signals(model):
+        if type(sig).__module__ != "regmech.signals" or type(sig).__name__ not in _PURE_SIGNALS:
+            return c.initial_y(t_start, modes)
+        key.append((comp.name, pname, type(sig).__name__, tuple(sorted(vars(sig).items()))))
+    hit = c.__dict__.get("_ida_start")
+    if hit is not None and hit[0] == key:
+        return hit[1].copy(), hit[2].copy()
+    y, yp = c.initial_y(t_start, modes)
+    c._ida_start = (key, y.copy(), yp.copy())
+    return y, yp
+
+
 def _blame(c, y, yp):
     """Names of the masses with the largest accelerations and the devices with the largest forces."""
     x, v, a, lam, z = c.unpack(y, yp)
@@ -207,8 +242,7 @@ def _blame(c, y, yp):
 @register("ida", IDA_OPTIONS)
 def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
                  max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, stiff_check=True,
-                 chatter_window=None,
-                 chatter_count=50):
+                 chatter_window=None, chatter_count=50, native=False):
     """IDA with analytic sparse Jacobian and event handling (see module docstring).
 
     A run whose motion turns out small for the absolute tolerance is repeated
@@ -242,7 +276,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
 
 
 def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max_order, dense_max, max_events,
-             max_steps, stiff_check, chatter_window, chatter_count, kind_atol=None):
+             max_steps, stiff_check, chatter_window, chatter_count, native=False, kind_atol=None):
     """One IDA run with ``simulate_ida``'s options; ``kind_atol``: the absolute tolerances of positions,
     speeds and device states per unknown (``_rescaled_atol``), None for the plain ``atol``."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
@@ -267,7 +301,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     if fr:
         y, yp, modes, _ = fr.settle(t_start, None, modes, initial=True)
     else:
-        y, yp = c.initial_y(t_start, modes)
+        y, yp = _start_values(model, c, t_start, modes)
     events: list[Event] = []
     rec = Recorder(c.mf)
     rec.add(t_start, y, yp, modes)
@@ -279,7 +313,12 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     # a link so much stiffer than the rest that its force's round-off (eps * spread) exceeds
     # the tolerance: Newton and the error test then fail over and over and IDA crawls
     check_link_spread(c, rtol, "ida", stiff_check)
-    opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps)
+    if native:
+        from .ida_native import eligible
+        why_not = eligible(c, linsolver, deadline)
+        native = why_not is None
+        stats.extra["native"] = True if native else f"not used: {why_not}"
+    opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native)
     reuse = {}        # the last segment's solver while it may start the next one (see _solve_segment)
     while t < t_end:
         if deadline is not None:
@@ -453,12 +492,12 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     time events (a Pulse) was a sixth of the time.
     """
     with_events = bool(c.friction) and c.friction.n_events > 0
-    rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps = opts
+    rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
     atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol)
     solver = _reusable(reuse, modes, atol_vec)
     if solver is None:
         solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
-                              max_steps, deadline)
+                              max_steps, deadline, native)
         if reuse is not None:
             reuse.update(solver=solver, modes=np.array(modes), atol=atol_vec)
     tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end
@@ -489,7 +528,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         hint = ("Try a tighter rtol, check parameters (very stiff links or tiny masses) or use rm.Scene to "
                 "reduce the model")
         if sol.status == -1:    # too many steps in one output interval
-            hint = (f"More than max_steps={opts[-1]} steps in one output interval: a discontinuity that is not "
+            hint = (f"More than max_steps={max_steps} steps in one output interval: a discontinuity that is not "
                     f"declared (a callable signal that jumps: use Step/Table/Pulse, or Function(f, breakpoints=...)), "
                     f"a very stiff or chattering part, or simply a long interval (raise max_steps or lower dt_out)")
         hint = hint.rstrip(".")
