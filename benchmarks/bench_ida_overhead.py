@@ -6,7 +6,10 @@ checkout's, build the same models (MSL First and CoupledClutches from ``library/
 of ``bench_foundation.chain``), run each once untimed, and then take turns: every repetition runs
 each case once in the baseline and once here, so both see the same load. Reported per case: the
 median wall and CPU (process) time of ``model.simulate(..., solver="ida", rtol=...)`` (1 ms output
-grid) on each side, their ratios (CPU time is the steadier under load), and the residual calls of each (the counts must agree: same steps, same answer).
+grid) on each side, their ratios (CPU time is the steadier under load), and the residual calls of each (before and after
+must agree: same steps, same answer). A third column runs this checkout with ``native=True``
+(``regmech.solvers.ida_native``; the same method, a residual summed in another order, so its step
+counts differ a little).
 
     python benchmarks/bench_ida_overhead.py [--repeats 9] [--base PATH] [--out FILE.md]
 """
@@ -51,23 +54,24 @@ def _build(name: str):
 
 
 def worker() -> None:
-    """Answer one JSON request per line: {"case": name, "rtol": r} -> {"wall": s, "rhs": n}."""
+    """Answer one JSON request per line: {"case": name, "rtol": r[, "native": true]} -> {"wall": s, "rhs": n, ...}."""
     import regmech
     models = {}
     print(json.dumps({"ready": str(Path(regmech.__file__).parent)}), flush=True)
     for line in sys.stdin:
         req = json.loads(line)
         name, rtol = req["case"], req["rtol"]
+        opts = {"native": True} if req.get("native") else {}
         if name not in models:
             models[name] = _build(name)
-            m, t_end = models[name]
-            m.simulate(t_end, dt_out=1e-3, solver="ida", rtol=rtol)      # compile, first call: untimed
         m, t_end = models[name]
+        if req.get("warm"):
+            m.simulate(t_end, dt_out=1e-3, solver="ida", rtol=rtol, **opts)      # compile, first call: untimed
         c0, t0 = time.process_time(), time.perf_counter()
-        res = m.simulate(t_end, dt_out=1e-3, solver="ida", rtol=rtol)
+        res = m.simulate(t_end, dt_out=1e-3, solver="ida", rtol=rtol, **opts)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        print(json.dumps({"wall": wall, "cpu": cpu, "rhs": res.stats.rhs_calls, "segments": res.stats.segments}),
-              flush=True)
+        print(json.dumps({"wall": wall, "cpu": cpu, "rhs": res.stats.rhs_calls, "segments": res.stats.segments,
+                          "native": res.stats.extra.get("native")}), flush=True)
 
 
 # ------------------------------------------------------------------------------------ driver side
@@ -88,8 +92,8 @@ class Worker:
                                      stdout=subprocess.PIPE, text=True, env=env, cwd=str(ROOT))
         self.where = json.loads(self.proc.stdout.readline())["ready"]
 
-    def run(self, case: str, rtol: float) -> dict:
-        self.proc.stdin.write(json.dumps({"case": case, "rtol": rtol}) + "\n")
+    def run(self, case: str, rtol: float, native: bool = False, warm: bool = False) -> dict:
+        self.proc.stdin.write(json.dumps({"case": case, "rtol": rtol, "native": native, "warm": warm}) + "\n")
         self.proc.stdin.flush()
         line = self.proc.stdout.readline()
         if not line:
@@ -115,37 +119,38 @@ def main() -> None:
     base = args.base or _baseline_tree()
     old, new = Worker(base), Worker(ROOT / "src")
     load0 = os.getloadavg()
-    times = {c: ([], []) for c in CASES}
-    cpu = {c: ([], []) for c in CASES}
-    calls = {}
+    times = {c: ([], [], []) for c in CASES}
+    cpu = {c: ([], [], []) for c in CASES}
+    calls, native_note = {}, {}
     try:
-        for c in CASES:          # first calls (compile) outside the timing
-            old.run(*c)
-            new.run(*c)
+        for c in CASES:          # first calls (compile, numba's start-up) outside the timing
+            old.run(*c, warm=True)
+            new.run(*c, warm=True)
+            native_note[c] = new.run(*c, native=True, warm=True)["native"]
         for _ in range(args.repeats):
             for c in CASES:
-                a, b = old.run(*c), new.run(*c)
-                times[c][0].append(a["wall"])
-                times[c][1].append(b["wall"])
-                cpu[c][0].append(a["cpu"])
-                cpu[c][1].append(b["cpu"])
-                calls[c] = (a["rhs"], b["rhs"], a["segments"], b["segments"])
+                runs = (old.run(*c), new.run(*c), new.run(*c, native=True))
+                for k, r in enumerate(runs):
+                    times[c][k].append(r["wall"])
+                    cpu[c][k].append(r["cpu"])
+                calls[c] = tuple(r["rhs"] for r in runs) + (runs[0]["segments"],)
     finally:
         old.close()
         new.close()
     load1 = os.getloadavg()
-    lines = [f"IDA overhead, before ({old.where}) and after ({new.where}), interleaved; medians of "
-             f"{args.repeats}; {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load "
-             f"{load0[0]:.2f} -> {load1[0]:.2f}", "",
-             "| case | rtol | wall before [ms] | wall after [ms] | after/before | CPU before [ms] | CPU after [ms] | "
-             "after/before | residual calls before / after | segments |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [f"IDA overhead, before ({old.where}) and after ({new.where}; native: solver='ida', native=True), "
+             f"interleaved; medians of {args.repeats}; {platform.processor() or platform.machine()}, "
+             f"{os.cpu_count()} cores, load {load0[0]:.2f} -> {load1[0]:.2f}", "",
+             "| case | rtol | wall before [ms] | after | native | CPU before [ms] | after | native | "
+             "CPU after/before | native/before | residual calls before / after / native | segments |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for c in CASES:
-        a, b = (1e3 * float(np.median(v)) for v in times[c])
-        ca, cb = (1e3 * float(np.median(v)) for v in cpu[c])
-        ra, rb, sa, sb = calls[c]
-        lines.append(f"| {c[0]} | {c[1]:g} | {a:.1f} | {b:.1f} | {b / a:.2f} | {ca:.1f} | {cb:.1f} | {cb / ca:.2f} | "
-                     f"{ra} / {rb} | {sa} / {sb} |")
+        a, b, n = (1e3 * float(np.median(v)) for v in times[c])
+        ca, cb, cn = (1e3 * float(np.median(v)) for v in cpu[c])
+        ra, rb, rn, sa = calls[c]
+        note = "" if native_note[c] is True else " (native: " + str(native_note[c]).replace("not used: ", "") + ")"
+        lines.append(f"| {c[0]} | {c[1]:g} | {a:.1f} | {b:.1f} | {n:.1f} | {ca:.1f} | {cb:.1f} | {cn:.1f} | "
+                     f"{cb / ca:.2f} | {cn / ca:.2f} | {ra} / {rb} / {rn}{note} | {sa} |")
     text = "\n".join(lines)
     print(text)
     if args.out:
