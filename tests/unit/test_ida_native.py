@@ -141,3 +141,14 @@ def test_native_failure_is_a_simulation_error_naming_the_model():
 def test_native_flag_is_checked():
     with pytest.raises(rm.ParameterError, match="native"):
         first().simulate(0.1, solver="ida", native="yes")
+
+
+def test_a_work_budget_still_counts_every_residual_call():
+    """The budget of the fuzz and hard-case benches wraps the compiled residual: neither the native path nor
+    the shortcut callback of the usual path may go around it."""
+    from regmech.bench.guard import WorkBudgetExceeded, work_budget
+    m = chain(5)
+    for native in (False, True):
+        with pytest.raises(WorkBudgetExceeded):
+            with work_budget(m, 40):
+                m.simulate(0.5, dt_out=0.1, solver="ida", native=native)

@@ -138,11 +138,12 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
             uband = int(max(0, (pat.col - pat.row).max(initial=0)))
         return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband)
 
-    if order.perm is None and not c.mf:
+    if order.perm is None and not c.mf and "residual" not in c.__dict__:
         plan = c._plan
 
         def resfn(t, y, yp, res):
-            # ``CompiledSystem.residual`` without friction rows, one call less per evaluation
+            # ``CompiledSystem.residual`` without friction rows, one call less per evaluation (not when the
+            # residual is wrapped on the instance: a work budget counts the calls there)
             plan.residual(t, y, yp, t >= c._t_right, res)
     elif order.perm is None:
         def resfn(t, y, yp, res):
@@ -539,8 +540,9 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     # rows 1.. of the solution, all at once; the event row (status 2) is recorded by the caller, before and
     # after settling; rows beyond ``tspan`` (none in IDA's normal mode) would be kept
     end = n_rows - 1 if sol.status == 2 else n_rows
-    keep = np.arange(1, max(end, 1))
-    keep = keep[np.concatenate([record, np.ones(max(0, end - len(record)), bool)])[keep]]
+    wanted = np.concatenate([record, np.ones(max(0, end - len(record)), bool)])[1:max(end, 1)]
+    # all rows wanted (every segment but a two-point one): views, no copy of the output rows
+    keep = slice(1, max(end, 1)) if wanted.all() else np.arange(1, max(end, 1))[wanted]
     T = np.asarray(sol.t)[keep]
     rec.add_rows(T, np.asarray(sol.y)[keep], np.asarray(sol.yp)[keep], modes, T >= t_stop)
     return sol

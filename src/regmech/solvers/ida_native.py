@@ -175,11 +175,13 @@ def eligible(c, linsolver, deadline=None):
         return f"linear solver '{linsolver}' (the native path has dense and band)"
     if deadline is not None:
         return "a wall-clock limit (timeout_s) is active; its checks run in Python"
+    if "residual" in c.__dict__:
+        return "the residual is wrapped on the compiled system (a work budget counts its calls in Python)"
+    lib = libraries()            # numba first: the signal table needs the kernels' constants
+    if isinstance(lib, str):
+        return lib
     table = signal_table(plan)
-    if isinstance(table, str):
-        return table
-    lib = libraries()
-    return lib if isinstance(lib, str) else None
+    return table if isinstance(table, str) else None
 
 
 class _Result:
