@@ -9,6 +9,9 @@ are made consistent by the compiler (projection onto the constraints,
 accelerations and constraint forces from one sparse KKT solve), so IDA's own
 initial-condition search is not needed.
 
+``native=True`` runs linear models with no Python in IDA's loop (``ida_native``: the same SUNDIALS IDA
+through ctypes, numba-compiled residual, Jacobian and output loop); other models run as below.
+
 Linear solver: ``dense`` below ``dense_max`` unknowns (60), ``sparse``
 (SuperLU_MT) with the analytic Jacobian above; ``linsolver`` overrides.
 
@@ -123,6 +126,13 @@ def choose_linsolver(c, dense_max=60, band_max=40, dense_wide_max=400):
     return "sparse", _Ordering(c.N)
 
 
+def _band_widths(c, order):
+    """(lower, upper) bandwidth of the iteration matrix in the solver's ordering."""
+    P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
+    pat = P.tocoo()
+    return int(max(0, (pat.row - pat.col).max(initial=0))), int(max(0, (pat.col - pat.row).max(initial=0)))
+
+
 def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order, max_steps=50000,
                  deadline=None, native=False):
     import sksundae
@@ -130,12 +140,7 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
     if native:
         # an eligible model (``ida_native.eligible``, checked by the caller): no callbacks into Python
         from .ida_native import NativeIDA
-        lband = uband = 0
-        if linsolver == "band":
-            P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
-            pat = P.tocoo()
-            lband = int(max(0, (pat.row - pat.col).max(initial=0)))
-            uband = int(max(0, (pat.col - pat.row).max(initial=0)))
+        lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
         return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband)
 
     if order.perm is None and not c.mf and "residual" not in c.__dict__:
@@ -183,10 +188,8 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
             JJ[:] = c.jacobian_data(t, y, yp, cj, modes)
         opts.update(linsolver="sparse", sparsity=c.jac.pattern, jacfn=jacfn)
     elif linsolver == "band":
-        P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
-        pat = P.tocoo()
-        opts.update(linsolver="band", lband=int(max(0, (pat.row - pat.col).max(initial=0))),
-                    uband=int(max(0, (pat.col - pat.row).max(initial=0))))
+        lband, uband = _band_widths(c, order)
+        opts.update(linsolver="band", lband=lband, uband=uband)
     else:
         raise SimulationError(f"unknown linsolver {linsolver!r}; use 'dense', 'sparse' or 'band'")
     if with_events:
