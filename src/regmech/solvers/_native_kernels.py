@@ -153,10 +153,10 @@ def jacobian_dense(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
 
 
 @njit(cache=True)
-def drive(solve_fn, mem, tspan, tret, yy, yp, y_addr, yp_addr, T, Y, YP):
-    """IDASolve to each of ``tspan[1:]`` (normal mode), rows into T, Y, YP (row 0: the start, written by the
-    caller); returns (rows written, last flag). Stops after a flag < 0 (that row kept, as scikit-sundae does)
-    or the stop time (flag 1)."""
+def drive(solve_fn, mem, tspan, tret, yy, yp, y_addr, yp_addr, perm, T, Y, YP):
+    """IDASolve to each of ``tspan[1:]`` (normal mode), rows into T, Y, YP in the compiled system's order
+    (solver entry i is unknown ``perm[i]``; row 0: the start, written by the caller); returns (rows written,
+    last flag). Stops after a flag < 0 (that row kept, as scikit-sundae does) or the stop time (flag 1)."""
     N = Y.shape[1]
     ya = carray(_f64p(y_addr), (N,))
     ypa = carray(_f64p(yp_addr), (N,))
@@ -167,8 +167,8 @@ def drive(solve_fn, mem, tspan, tret, yy, yp, y_addr, yp_addr, T, Y, YP):
         flag = _call_ida_solve(solve_fn, mem, tspan[k], tr, yy, yp, 1)
         T[k] = tret[0]
         for i in range(N):
-            Y[k, i] = ya[i]
-            YP[k, i] = ypa[i]
+            Y[k, perm[i]] = ya[i]
+            YP[k, perm[i]] = ypa[i]
         k += 1
         if flag < 0 or flag == 1:
             break

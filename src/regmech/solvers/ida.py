@@ -127,10 +127,17 @@ def choose_linsolver(c, dense_max=60, band_max=40, dense_wide_max=400):
 
 
 def _band_widths(c, order):
-    """(lower, upper) bandwidth of the iteration matrix in the solver's ordering."""
+    """(lower, upper) bandwidth of the iteration matrix in the solver's ordering (kept on the compiled system
+    with the ordering it was computed for: every segment of every run asks)."""
+    key = None if order.perm is None else order.perm.tobytes()
+    hit = c.__dict__.get("_band_widths")
+    if hit is not None and hit[0] == key:
+        return hit[1]
     P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
     pat = P.tocoo()
-    return int(max(0, (pat.row - pat.col).max(initial=0))), int(max(0, (pat.col - pat.row).max(initial=0)))
+    widths = int(max(0, (pat.row - pat.col).max(initial=0))), int(max(0, (pat.col - pat.row).max(initial=0)))
+    c._band_widths = (key, widths)
+    return widths
 
 
 def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order, max_steps=50000,
@@ -515,7 +522,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         record = np.array([True, False, True])
     try:
         sol = solver.solve(tspan, order.to_solver(y), order.to_solver(yp))
-        if order.perm is not None:
+        if order.perm is not None and not getattr(sol, "unpermuted", False):
             _unpermute(sol, order)
     except (RuntimeError, ValueError, KeyError) as exc:
         raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "

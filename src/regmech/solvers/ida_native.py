@@ -196,8 +196,9 @@ class _Result:
                 -8: "The residual function failed unrecoverably.",
                 -9: "The residual function failed repeatedly."}
 
-    def __init__(self, t, y, yp, status, nfev, njev):
+    def __init__(self, t, y, yp, status, nfev, njev, unpermuted=False):
         self.t, self.y, self.yp, self.status = t, y, yp, status
+        self.unpermuted = unpermuted         # rows already in the compiled system's order
         self.success = status >= 0
         self.message = self.MESSAGES.get(status, f"IDA flag {status}")
         self.nfev, self.njev = nfev, njev
@@ -254,7 +255,8 @@ def _layout(c, linsolver, order):
 
 
 class NativeIDA:
-    """A drop-in for ``sksundae.ida.IDA`` on an eligible model (``eligible``): ``solve(tspan, y0, yp0)``.
+    """A drop-in for ``sksundae.ida.IDA`` on an eligible model (``eligible``): ``solve(tspan, y0, yp0)``, whose
+    output rows come back in the compiled system's order (``_Result.unpermuted``).
 
     Built with the options ``ida._make_solver`` gives scikit-sundae (scikit-sundae's defaults for the
     rest: Newton at most 4 iterations, 10 convergence failures, IDA's own first step); the first
@@ -300,6 +302,7 @@ class NativeIDA:
         ident[alg] = 0.0
         self._at, self._id = at, idv
         self._opts = (float(rtol), linsolver, A, LS, max_step, int(max_order), int(max_steps))
+        self.perm = np.arange(N) if order.perm is None else np.asarray(order.perm, np.int64)
         self._initialised = False
         self.tret = np.zeros(1)
 
@@ -342,11 +345,12 @@ class NativeIDA:
         T = np.empty(n)
         Y = np.empty((n, self.N))
         YP = np.empty((n, self.N))
-        T[0], Y[0], YP[0] = tspan[0], self.ya, self.ypa
+        T[0] = tspan[0]
+        Y[0, self.perm], YP[0, self.perm] = self.ya, self.ypa
         rows, flag = self.K.drive(self.lib.solve_address, self.mem, tspan, self.tret, self.yy, self.yp,
-                                  self.ya_address, self.ypa_address, T, Y, YP)
+                                  self.ya_address, self.ypa_address, self.perm, T, Y, YP)
         lib.clear_stop(self.mem)
         nf, nj = ctypes.c_long(), ctypes.c_long()
         lib.n_res(self.mem, ctypes.byref(nf))
         lib.n_jac(self.mem, ctypes.byref(nj))
-        return _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf.value), int(nj.value))
+        return _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf.value), int(nj.value), unpermuted=True)
