@@ -75,7 +75,66 @@ class Coupler3(Device):
                 self.c * e[1] + 2 * self.k * e[0] ** 2 * e[1] + 0.2 * de[1] ** 3]
 
 
+class LoadedSpring(TwoFlangeCompliant):
+    """Spring with a torque ``k u(t) + b`` added: an offset linear in its signal, coefficient and constant
+    from the parameters (the residual multiplies the signal value itself)."""
+
+    c = Param(check="positive")
+    k = Param(check="real")
+    b = Param(check="real")
+    u = Param(check="signal")
+
+    def law(self, rel, rel_dot):
+        return self.c * rel + self.k * self.u + self.b
+
+
+class Lag(TwoFlangeCompliant):
+    """A state ``q`` lagging behind ``k u(t)`` with time constant ``T``: a state offset linear in the signal."""
+
+    c = Param(check="positive")
+    k = Param(check="real")
+    T = Param(check="positive")
+    u = Param(check="signal")
+    q0 = Param(0.0)
+    states = {"q": "q0"}
+
+    def law(self, rel, rel_dot):
+        return self.c * rel + self.q
+
+    def derivatives(self, e, de):
+        return [(self.k * self.u - self.q) / self.T]
+
+
+class SquareDrive(TwoFlangeCompliant):
+    """Spring with a torque ``u(t)^2 + 0.1 sin(time)``: an offset not linear in the signal, and using time."""
+
+    c = Param(check="positive")
+    u = Param(check="signal")
+
+    def law(self, rel, rel_dot):
+        return self.c * rel + self.u ** 2 + 0.1 * sympy.sin(self.time)
+
+
 # -- models ---------------------------------------------------------------------------------
+def input_offsets():
+    """Affine devices whose offsets follow their signals: linearly (LoadedSpring, Lag, Torque) and not
+    (SquareDrive)."""
+    m = rm.Model("input_offsets")
+    f = m.add(Fixed("fixed"))
+    J = [m.add(Inertia(f"J{i}", J=1.0 + 0.3 * i)) for i in range(4)]
+    devs = [LoadedSpring("ls1", c=40, k=2.5, b=0.3, u=Sine(amplitude=2, freq_hz=1.5, offset=0.2)),
+            LoadedSpring("ls2", c=25, k=-1.5, b=0.0, u=Step(height=1.0, start_time=0.4)),
+            Lag("lag", c=30, k=3.0, T=0.2, u=Ramp(height=2.0, duration=0.5), q0=0.1),
+            SquareDrive("sq", c=20, u=Sine(amplitude=1, freq_hz=2))]
+    for i, d in enumerate(devs):
+        m.add(d)
+        m.connect((J[i - 1].flange_b if i else f.flange), d.flange_a)
+        m.connect(d.flange_b, J[i].flange_a)
+    tq = m.add(Torque("tq", tau=Sine(amplitude=3, freq_hz=2)))
+    m.connect(tq.flange, J[3].flange_b)
+    return m
+
+
 def gear_chain():
     """Gears and rigid shafts between compliant links, a cubic spring, a shifted ground."""
     m = rm.Model("gears")
@@ -165,7 +224,7 @@ def random_model(seed: int):
 
 
 MODELS = {"first": first, "gear_chain": gear_chain, "state_devices": state_devices,
-          "coupled_clutches": coupled_clutches}
+          "coupled_clutches": coupled_clutches, "input_offsets": input_offsets}
 
 
 # -- the reference --------------------------------------------------------------------------
@@ -305,8 +364,29 @@ def test_affine_classes_are_folded_and_nonlinear_ones_evaluated():
     kinds = {g.tpl.cls.__name__: g.tpl.affine for g in c.groups}
     assert kinds == {"Torque": True, "SpringDamper": True, "Shaft": True, "Spring": True, "CubicSpring": False}
     assert [g.tpl.cls.__name__ for g in c._plan.nonlinear] == ["CubicSpring"]
-    # the Torque's sine is the only time-varying offset
-    assert [g.tpl.cls.__name__ for g, _ in c._plan.offset_slots] == ["Torque"]
+    # the Torque's sine is the only time-varying offset; tau(0) = tau is linear in the signal, so the
+    # residual multiplies the signal value itself (an input slot)
+    assert [g.tpl.cls.__name__ for g, *_ in c._plan.input_slots] == ["Torque"]
+    assert c._plan.offset_slots == []
+
+
+def test_offsets_linear_in_their_signals_take_the_signal_values():
+    """Offsets ``const + coef u(t)`` (coefficients of the parameters) go through input slots, any other
+    varying offset through the offset function; both agree with the reference (``check_model``)."""
+    c = check_model(input_offsets(), np.random.default_rng(11), points=3)
+    slots = {g.tpl.cls.__name__: g for g, *_ in c._plan.input_slots}
+    assert sorted(slots) == ["Lag", "LoadedSpring", "Torque"]
+    assert [g.tpl.cls.__name__ for g, _ in c._plan.offset_slots] == ["SquareDrive"]
+    coef = {g.tpl.cls.__name__: cf for g, _, cf, _ in c._plan.input_slots}
+    np.testing.assert_array_equal(coef["LoadedSpring"][0][0], [2.5, -1.5])
+    np.testing.assert_allclose(coef["Lag"][1][0], [3.0 / 0.2])        # the state's offset k u / T
+    # and a run through the ODE form (device outputs) and through IDA (residual) agree
+    m = input_offsets()
+    a = m.simulate(1.0, dt_out=0.05, solver="ida", rtol=1e-9, atol=1e-11)
+    b = m.simulate(1.0, dt_out=0.05, solver="scipy:DOP853", rtol=1e-10, atol=1e-12)
+    for name in ("J0.w", "J3.phi", "lag.q"):
+        scale = max(1.0, float(np.abs(b[name]).max()))
+        np.testing.assert_allclose(a[name], b[name], rtol=0, atol=1e-6 * scale)
 
 
 def test_residual_at_the_right_end_of_a_piece_uses_left_limits():

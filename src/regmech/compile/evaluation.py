@@ -35,6 +35,11 @@ from .assembly import KernelTerms, input_entries, output_entries
 
 DENSE_MAX = 6000
 
+try:       # the kernel behind scipy's CSR matrix-vector product, without its per-call dispatch (a few us)
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec
+except ImportError:      # pragma: no cover - a scipy that moved it: the public product is used
+    _csr_matvec = None
+
 
 def _operator(rows, cols, vals, shape):
     """Sum duplicates; dense ndarray when small, CSR otherwise."""
@@ -87,10 +92,19 @@ class EvaluationPlan:
             self.nl_out.append((g, slot))
             slot += (g.tpl.k + len(g.tpl.states)) * g.n
         self.offset_slots = []                # (group, first slot) of time-varying affine offsets
+        self.input_slots = []                 # (group, first slot, coefficients, constant offsets): see below
         for g in self.affine:
-            if g.offset_varies:
+            if not g.offset_varies:
+                continue
+            linear = self._linear_offsets(g)
+            if linear is None:
                 self.offset_slots.append((g, slot))
                 slot += (g.tpl.k + len(g.tpl.states)) * g.n
+            else:
+                # offsets linear in the signal values (a Torque's tau(0) = tau): the slots hold the values
+                # u(t) themselves, bank by bank, and the coefficients d offset / d u sit in L
+                self.input_slots.append((g, slot, *linear))
+                slot += len(g.banks) * g.n
         self.pos_refs = [(slot + 3 * i, s) for i, (j, s) in enumerate(c._pos_sig)]
         slot += 3 * len(c._pos_sig)
         self.spd_refs = [(slot + 2 * i, s) for i, (j, s) in enumerate(c._spd_sig)]
@@ -99,7 +113,15 @@ class EvaluationPlan:
         self.width = slot + 1
         self.buf = np.zeros(self.width)
         self.buf[self.one] = 1.0
+        # (bank, slice of buf) of every input slot: the residual writes the signal values there
+        self._input_writes = [(b, slice(start + j * g.n, start + (j + 1) * g.n))
+                              for g, start, _, _ in self.input_slots for j, b in enumerate(g.banks)]
         self.L = self._residual_matrix(c, linear_terms, kterms)
+        self._dense = isinstance(self.L, np.ndarray)
+        self._csr = None
+        if not self._dense and _csr_matvec is not None and self.L.format == "csr" and self.L.dtype == np.float64:
+            L = self.L
+            self._csr = (L.shape[0], L.shape[1], L.indptr, L.indices, L.data, np.zeros(L.shape[0]))
         self._build_kernel_arguments(c)
         self._build_device_outputs(c, kterms)
 
@@ -119,9 +141,16 @@ class EvaluationPlan:
         T.add(kterms.e0_row[keep0], one, kterms.e0_coef[keep0] * wc[kterms.e0_widx[keep0]])
         # affine offsets: constant ones into the last column, varying ones into their slots
         varying = {id(g): start for g, start in self.offset_slots}
+        inputs = {id(g): (start, coef, const) for g, start, coef, const in self.input_slots}
         for g in self.affine:
             outputs = self._outputs(c, g)
-            if id(g) in varying:
+            if id(g) in inputs:
+                start, coef, const = inputs[id(g)]
+                for o, (ent, sign) in enumerate(outputs):
+                    for j in range(len(g.banks)):
+                        T.add(ent.index, start + j * g.n + ent.owner, sign * ent.coef * coef[o][j][ent.owner])
+                    T.add(ent.index, one, sign * ent.coef * const[o][ent.owner])
+            elif id(g) in varying:
                 start = varying[id(g)]
                 for o, (ent, sign) in enumerate(outputs):
                     T.add(ent.index, start + o * g.n + ent.owner, sign * ent.coef)
@@ -138,6 +167,22 @@ class EvaluationPlan:
         for (slot, _), (j, _) in zip(self.spd_refs, c._spd_sig):
             T.add([c.r_vel[c.mp + j], c.r_acc[c.mp + j]], [slot, slot + 1], -1.0)
         return T.build((N, self.width))
+
+    @staticmethod
+    def _linear_offsets(g):
+        """``(coef, const)`` when the group's offsets are ``const + coef @ u`` in its signal values ``u``
+        (``Template.offset_coef_fn``): ``coef[o][j]`` and ``const[o]`` arrays over the instances; else None."""
+        fn = g.tpl.offset_coef_fn
+        if fn is None or len(g.banks) != len(g.tpl.inputs):
+            return None
+        n = g.n
+        coef = [[np.broadcast_to(np.asarray(cf, float), (n,)) for cf in row] for row in fn(*g.param_values)]
+        zeros = [np.zeros(n)] * len(g.banks)
+        const = [np.broadcast_to(np.asarray(o, float), (n,)) for o in g.tpl.offset_fn(*g.param_values, *zeros, 0.0)]
+        if not all(np.all(np.isfinite(cf)) for row in coef for cf in row) or not all(np.all(np.isfinite(o))
+                                                                                   for o in const):
+            return None
+        return coef, const
 
     @staticmethod
     def _outputs(c, g):
@@ -171,6 +216,7 @@ class EvaluationPlan:
         t0 = np.zeros(n_c + c.nz)
         V = _Triplets()
         varying = {id(g): start for g, start in self.offset_slots}
+        inputs = {id(g): (start, coef, const) for g, start, coef, const in self.input_slots}
         self.nl_rows = []                        # per nonlinear group: output rows of [tau; dz]
         for g, (woff, _) in zip(c.groups, c._wslices):
             k, ns = g.tpl.k, len(g.tpl.states)
@@ -185,7 +231,13 @@ class EvaluationPlan:
                 T.add(rows[inp.owner], inp.index, w[inp.owner] * inp.coef)
                 if wname == "e":
                     np.add.at(t0, rows, w * c.e0c[g.row_index[:, wj]])
-            if id(g) in varying:
+            if id(g) in inputs:
+                start, coef, const = inputs[id(g)]
+                for o, rows in enumerate(out_rows):
+                    for j in range(len(g.banks)):
+                        V.add(rows, start + j * g.n + np.arange(g.n), coef[o][j])
+                    np.add.at(t0, rows, const[o])
+            elif id(g) in varying:
                 start = varying[id(g)]
                 for o, rows in enumerate(out_rows):
                     V.add(rows, start + o * g.n + np.arange(g.n), 1.0)
@@ -194,7 +246,7 @@ class EvaluationPlan:
                     np.add.at(t0, rows, val)
         self.T = T.build((n_c + c.nz, self.N))
         self.t0 = t0
-        self.V = V.build((n_c + c.nz, self.width)) if self.offset_slots else None
+        self.V = V.build((n_c + c.nz, self.width)) if self.offset_slots or self.input_slots else None
         self.ybuf = np.zeros(self.N)
 
     # --------------------------------------------------------------- evaluate
@@ -209,6 +261,8 @@ class EvaluationPlan:
         if self.V is not None:
             for g, start in self.offset_slots:
                 g.offsets_into(self.buf, start, t, left)
+            for bank, sl in self._input_writes:
+                self.buf[sl] = bank.at(t, left)
             out += self.V @ self.buf
         if self.nonlinear:
             for g_rows, (g, _, _), args in zip(self.nl_rows, self.nl_args, self.kernel_arguments(yb)):
@@ -234,6 +288,8 @@ class EvaluationPlan:
                     buf[start + o * n: start + (o + 1) * n] = val
         for g, start in self.offset_slots:
             g.offsets_into(buf, start, t, left)
+        for bank, sl in self._input_writes:
+            buf[sl] = bank.at(t, left)
         for slot, s in self.pos_refs:
             buf[slot] = s.value(t, left)
             buf[slot + 1] = s.derivative(t, 1, left)
@@ -241,6 +297,18 @@ class EvaluationPlan:
         for slot, s in self.spd_refs:
             buf[slot] = s.value(t, left)
             buf[slot + 1] = s.derivative(t, 1, left)
+        if self._dense:
+            try:
+                np.dot(self.L, buf, out=out)       # no temporary: ``out`` is IDA's own vector
+                return
+            except (TypeError, ValueError):        # an ``out`` that is not a contiguous float vector
+                pass
+        elif self._csr is not None:
+            n_row, n_col, indptr, indices, data, acc = self._csr
+            acc.fill(0.0)
+            _csr_matvec(n_row, n_col, indptr, indices, data, buf, acc)     # acc += L buf, as ``L @ buf`` does
+            out[:] = acc
+            return
         out[:] = self.L @ buf
 
     def nonlinear_weights_into(self, w, t: float, y, left: bool) -> None:

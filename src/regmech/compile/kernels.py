@@ -80,6 +80,10 @@ class Template:
     offset_fn: object = None
     offset_varies: bool = False  # tau(0)/dz(0) depend on time or inputs
     offset_uses_time: bool = False  # ... on time itself (not only through inputs)
+    #: ``offset_coef_fn(params...)`` -> ``[[d offset_o / d input_j]...]`` when the varying offsets are linear in
+    #: the inputs with coefficients of the parameters alone and do not use time (a Torque's ``tau(0) = tau``):
+    #: the residual then multiplies the signal values themselves (``EvaluationPlan``'s input slots)
+    offset_coef_fn: object = None
 
 
 class _KernelPrinter(NumPyPrinter):
@@ -154,17 +158,21 @@ def template_for(dev: Device) -> Template:
     # affine: the Jacobian is a function of the parameters alone (no e, de, z, t or inputs)
     variable = set(e) | set(de) | set(z) | {t} | set(input_syms)
     affine = not any(x.free_symbols & variable for x in jac_exprs)
-    offset_fn, offset_varies, offset_uses_time = None, False, False
+    offset_fn, offset_varies, offset_uses_time, offset_coef_fn = None, False, False, None
     if affine:
         zero = {s: 0 for s in list(e) + list(de) + z}
         offsets = [x.subs(zero) for x in taus + dz]
         offset_varies = any(x.free_symbols & ({t} | set(input_syms)) for x in offsets)
         offset_uses_time = any(t in x.free_symbols for x in offsets)
         offset_fn = _lambdify(param_syms + input_syms + [t], offsets)
+        if offset_varies and not offset_uses_time:
+            coefs = [[sympy.diff(x, u) for u in input_syms] for x in offsets]
+            if not any(cf.free_symbols & set(input_syms) for row in coefs for cf in row):
+                offset_coef_fn = _lambdify(param_syms, coefs)
     tpl = Template(cls, k, states, params, inputs, fn, jac_entries, len(taus) + len(dz) + len(jac_exprs) + 1,
                    res_fn=_lambdify(args, taus + dz), jac_fn=_lambdify(args, jac_exprs),
                    affine=affine, offset_fn=offset_fn, offset_varies=offset_varies,
-                   offset_uses_time=offset_uses_time)
+                   offset_uses_time=offset_uses_time, offset_coef_fn=offset_coef_fn)
     _TEMPLATES[key] = tpl
     return tpl
 

@@ -234,8 +234,10 @@ class CompiledSystem:
         """``F(t, y, y')`` into ``res`` (see the module docstring; one matrix product, ``compile.evaluation``)."""
         self._plan.residual(t, y, yp, t >= self._t_right, res)
         if self.mf:
-            x, v, a, lam, z = self.unpack(y, yp)
-            res[self.r_fric] = self.friction.residual_rows(t, v, a, lam, modes)
+            # the friction rows read v, a and lam only: views where ``unpack`` would copy all five
+            a = yp[self._sv].copy()
+            a[self.Dv] = y[self._sad]
+            res[self.r_fric] = self.friction.residual_rows(t, y[self._sv], a, y[self._slam], modes)
 
     def jacobian_data(self, t, y, yp, cj, modes=None):
         """CSC values of ``dF/dy + cj dF/dy'`` on ``self.jac.pattern``."""
@@ -577,7 +579,18 @@ class CompiledSystem:
         return self.jac.pattern
 
     def stiffness_estimate(self):
-        """Diagonal stiffness of each compliant row at the start (for warnings)."""
+        """Diagonal stiffness of each compliant row at the start (for warnings), computed once per compiled
+        system (every run asks for it, some twice: the stiffness check and IDA's force tolerances)."""
+        k = self.__dict__.get("_stiffness")
+        if k is None:
+            t_right, self._t_right = self._t_right, np.inf    # at t = 0 as a fresh system sees it
+            try:
+                k = self._stiffness = self._stiffness_at_start()
+            finally:
+                self._t_right = t_right
+        return k.copy()
+
+    def _stiffness_at_start(self):
         y, yp = self.initial_y(0.0)
         x, v, a, lam, z = self.unpack(y, yp)
         e, de, tau, dz, w = self.kernel_outputs(x, v, z, 0.0)
@@ -589,7 +602,14 @@ class CompiledSystem:
         return k
 
     def link_frequencies(self) -> np.ndarray:
-        """Local frequency estimate [rad/s] of every compliant row: ``sqrt(k * sum_j S_rj^2 / m_j)``."""
+        """Local frequency estimate [rad/s] of every compliant row: ``sqrt(k * sum_j S_rj^2 / m_j)``
+        (once per compiled system, as ``stiffness_estimate``)."""
+        w = self.__dict__.get("_link_frequencies")
+        if w is None:
+            w = self._link_frequencies = self._link_frequencies_now()
+        return w.copy()
+
+    def _link_frequencies_now(self):
         k = self.stiffness_estimate()
         inv_m = np.where(self.mass > 0, 1.0 / np.where(self.mass > 0, self.mass, 1.0), 0.0)
         S2 = self.Sc.multiply(self.Sc)

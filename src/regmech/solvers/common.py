@@ -134,28 +134,76 @@ def signal_breakpoints(model, t_start, t_end):
 
 
 class Recorder:
-    """Collects output rows (t, y, yp, left flag, modes)."""
+    """Collects output rows (t, y, yp, left flag, modes): one at a time (``add``) or a block at a time
+    (``add_rows``: a segment of IDA's output stays one array, not rows split and joined again).
 
-    def __init__(self, modes_width: int):
+    ``yp_cols``: the columns of ``yp`` to keep (None: all). ``arrays`` joins the blocks into one array
+    each, releasing every block as it is copied (a single block is returned as it is), so a large run's
+    rows are not held twice.
+    """
+
+    def __init__(self, modes_width: int, yp_cols=None):
         self.t, self.y, self.yp, self.left, self.modes = [], [], [], [], []
         self.mw = modes_width
+        self.yp_cols = yp_cols
+        self._blocks = []          # (t, Y, YP, left, modes) arrays, in order, with the single rows between
 
     def add(self, t, y, yp, modes, left=False):
         self.t.append(float(t))
         self.y.append(np.array(y, float))
-        self.yp.append(np.array(yp, float))
+        self.yp.append(np.array(yp if self.yp_cols is None else np.asarray(yp)[self.yp_cols], float))
         self.left.append(bool(left))
         self.modes.append(np.array(modes, int).copy())
 
+    def _flush(self):
+        """The single rows added since the last block, as a block."""
+        if self.t:
+            k = len(self.t)
+            self._blocks.append((np.array(self.t), np.array(self.y), np.array(self.yp), np.array(self.left),
+                                 np.array(self.modes).reshape(k, self.mw)))
+            self.t, self.y, self.yp, self.left, self.modes = [], [], [], [], []
+
+    def add_rows(self, t, Y, YP, modes, left):
+        """Several rows at once (``t``, ``left``: 1-D; ``Y``, ``YP``: one row each, arrays the caller does not
+        change afterwards: they are kept as they are). One mode set for all of them."""
+        k = len(t)
+        if k == 0:
+            return
+        self._flush()
+        YP = np.asarray(YP, float)
+        if self.yp_cols is not None:
+            YP = YP[:, self.yp_cols]
+        mode_rows = np.broadcast_to(np.array(modes, int).reshape(1, self.mw), (k, self.mw))
+        self._blocks.append((np.asarray(t, float), np.asarray(Y, float), YP, np.asarray(left, bool), mode_rows))
+
+    @staticmethod
+    def _join(parts: list) -> np.ndarray:
+        """One array of the blocks' rows; empties the list as it copies (a single block: itself)."""
+        if len(parts) == 1:
+            return parts.pop()
+        out = np.empty((sum(len(p) for p in parts),) + parts[0].shape[1:], parts[0].dtype)
+        parts.reverse()
+        k = 0
+        while parts:
+            p = parts.pop()
+            out[k: k + len(p)] = p
+            k += len(p)
+        return out
+
     def arrays(self):
-        Y = np.array(self.y)
-        YP = np.array(self.yp)
+        self._flush()
+        if not self._blocks:
+            self._blocks = [(np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0)), np.zeros(0, bool),
+                             np.zeros((0, self.mw), int))]
+        columns = [list(col) for col in zip(*self._blocks)]
+        self._blocks = []
+        T, Y, YP, L, modes = (self._join(col) for col in columns)
+        modes = np.array(modes)           # writable (a block's mode rows are a broadcast view)
         if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(YP))):
             k = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | ~np.all(np.isfinite(YP), axis=1))[0][0])
-            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.t[k]:.6g}; the model or the "
+            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={T[k]:.6g}; the model or the "
                                   f"solver settings are unstable there (try a tighter tolerance or a stable solver)")
-        modes = np.array(self.modes).reshape(len(self.t), self.mw)
-        return np.array(self.t), Y, YP, np.array(self.left), modes
+        return T, Y, YP, L, modes
 
 
 def scale_hint(c) -> str:

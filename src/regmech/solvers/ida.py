@@ -9,6 +9,9 @@ are made consistent by the compiler (projection onto the constraints,
 accelerations and constraint forces from one sparse KKT solve), so IDA's own
 initial-condition search is not needed.
 
+``native=True`` runs linear models with no Python in IDA's loop (``ida_native``: the same SUNDIALS IDA
+through ctypes, numba-compiled residual, Jacobian and output loop); other models run as below.
+
 Linear solver: ``dense`` below ``dense_max`` unknowns (60), ``sparse``
 (SuperLU_MT) with the analytic Jacobian above; ``linsolver`` overrides.
 
@@ -36,7 +39,7 @@ from ..result import Event, Result, Stats
 from . import register
 from .common import (Recorder, StateScale, check_link_spread, check_times, output_grid, run_deadline,
                      signal_breakpoints)
-from .options import (Choice, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
+from .options import (Choice, Flag, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
                       rtol_option, stiff_check_option)
 
 IDA_OPTIONS = OptionSet(
@@ -51,6 +54,8 @@ IDA_OPTIONS = OptionSet(
     max_events=max_events_option(),
     max_steps=Integer("most IDA steps in one output interval (default 50000)", 1),
     stiff_check=stiff_check_option(),
+    native=Flag("run IDA with compiled callbacks and no Python in its loop where the model allows it "
+                "(linear models; needs numba: see regmech.solvers.ida_native; default False)"),
     **chatter_options(),
 )
 
@@ -121,11 +126,38 @@ def choose_linsolver(c, dense_max=60, band_max=40, dense_wide_max=400):
     return "sparse", _Ordering(c.N)
 
 
+def _band_widths(c, order):
+    """(lower, upper) bandwidth of the iteration matrix in the solver's ordering (kept on the compiled system
+    with the ordering it was computed for: every segment of every run asks)."""
+    key = None if order.perm is None else order.perm.tobytes()
+    hit = c.__dict__.get("_band_widths")
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
+    pat = P.tocoo()
+    widths = int(max(0, (pat.row - pat.col).max(initial=0))), int(max(0, (pat.col - pat.row).max(initial=0)))
+    c._band_widths = (key, widths)
+    return widths
+
+
 def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_events, order, max_steps=50000,
-                 deadline=None):
+                 deadline=None, native=False):
     import sksundae
 
-    if order.perm is None:
+    if native:
+        # an eligible model (``ida_native.eligible``, checked by the caller): no callbacks into Python
+        from .ida_native import NativeIDA
+        lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
+        return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband)
+
+    if order.perm is None and not c.mf and "residual" not in c.__dict__:
+        plan = c._plan
+
+        def resfn(t, y, yp, res):
+            # ``CompiledSystem.residual`` without friction rows, one call less per evaluation (not when the
+            # residual is wrapped on the instance: a work budget counts the calls there)
+            plan.residual(t, y, yp, t >= c._t_right, res)
+    elif order.perm is None:
         def resfn(t, y, yp, res):
             c.residual(t, y, yp, res, modes)
     else:
@@ -175,10 +207,8 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
             JJ[:] = c.jacobian_data(t, y, yp, cj, modes)
         opts.update(linsolver="sparse", sparsity=c.jac.pattern, jacfn=jacfn)
     elif linsolver == "band":
-        P = c.jac.pattern if order.perm is None else c.jac.pattern[order.perm][:, order.perm]
-        pat = P.tocoo()
-        opts.update(linsolver="band", lband=int(max(0, (pat.row - pat.col).max(initial=0))),
-                    uband=int(max(0, (pat.col - pat.row).max(initial=0))))
+        lband, uband = _band_widths(c, order)
+        opts.update(linsolver="band", lband=lband, uband=uband)
     else:
         raise SimulationError(f"unknown linsolver {linsolver!r}; use 'dense', 'sparse' or 'band'")
     if with_events:
@@ -199,6 +229,28 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
     return solver
 
 
+#: signal classes whose value is a function of time and of their (scalar) attributes alone
+_PURE_SIGNALS = ("Constant", "Sine", "Step", "Ramp", "Pulse")
+
+
+def _start_values(model, c, t_start, modes):
+    """``c.initial_y(t_start, modes)`` (a projection and two acceleration solves), remembered on the compiled
+    system for the next run from the same start when every signal of the model is one of regmech's own
+    scalar-parameter signals (a user's callable may not give the same values twice)."""
+    from .common import _signals
+    key = [float(t_start), float(c._t_right), tuple(int(m) for m in modes)]
+    for comp, pname, sig in _signals(model):
+        if type(sig).__module__ != "regmech.signals" or type(sig).__name__ not in _PURE_SIGNALS:
+            return c.initial_y(t_start, modes)
+        key.append((comp.name, pname, type(sig).__name__, tuple(sorted(vars(sig).items()))))
+    hit = c.__dict__.get("_ida_start")
+    if hit is not None and hit[0] == key:
+        return hit[1].copy(), hit[2].copy()
+    y, yp = c.initial_y(t_start, modes)
+    c._ida_start = (key, y.copy(), yp.copy())
+    return y, yp
+
+
 def _blame(c, y, yp):
     """Names of the masses with the largest accelerations and the devices with the largest forces."""
     x, v, a, lam, z = c.unpack(y, yp)
@@ -215,8 +267,7 @@ def _blame(c, y, yp):
 @register("ida", IDA_OPTIONS)
 def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
                  max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, stiff_check=True,
-                 chatter_window=None,
-                 chatter_count=50):
+                 chatter_window=None, chatter_count=50, native=False):
     """IDA with analytic sparse Jacobian and event handling (see module docstring).
 
     A run whose motion turns out small for the absolute tolerance is repeated
@@ -251,7 +302,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
 
 
 def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max_order, dense_max, max_events,
-             max_steps, stiff_check, chatter_window, chatter_count, kind_atol=None):
+             max_steps, stiff_check, chatter_window, chatter_count, native=False, kind_atol=None):
     """One IDA run with ``simulate_ida``'s options; ``kind_atol``: the absolute tolerances of positions,
     speeds and device states per unknown (``_rescaled_atol``), None for the plain ``atol``."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
@@ -277,7 +328,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     if fr:
         y, yp, modes, _ = fr.settle(t_start, None, modes, initial=True)
     else:
-        y, yp = c.initial_y(t_start, modes)
+        y, yp = _start_values(model, c, t_start, modes)
     events: list[Event] = []
     rec = Recorder(c.mf)
     rec.add(t_start, y, yp, modes)
@@ -289,7 +340,12 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     # a link so much stiffer than the rest that its force's round-off (eps * spread) exceeds
     # the tolerance: Newton and the error test then fail over and over and IDA crawls
     check_link_spread(c, rtol, "ida", stiff_check)
-    opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps)
+    if native:
+        from .ida_native import eligible
+        why_not = eligible(c, linsolver, deadline)
+        native = why_not is None
+        stats.extra["native"] = True if native else f"not used: {why_not}"
+    opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native)
     reuse = {}        # the last segment's solver while it may start the next one (see _solve_segment)
     while t < t_end:
         if deadline is not None:
@@ -463,12 +519,12 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     time events (a Pulse) was a sixth of the time.
     """
     with_events = bool(c.friction) and c.friction.n_events > 0
-    rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps = opts
+    rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
     atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol)
     solver = _reusable(reuse, modes, atol_vec)
     if solver is None:
         solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
-                              max_steps, deadline)
+                              max_steps, deadline, native)
         if reuse is not None:
             reuse.update(solver=solver, modes=np.array(modes), atol=atol_vec)
     tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end
@@ -482,7 +538,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         record = np.array([True, False, True])
     try:
         sol = solver.solve(tspan, order.to_solver(y), order.to_solver(yp))
-        if order.perm is not None:
+        if order.perm is not None and not getattr(sol, "unpermuted", False):
             _unpermute(sol, order)
     except (RuntimeError, ValueError, KeyError) as exc:
         raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "
@@ -501,7 +557,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         hint = ("Try a tighter rtol, check parameters (very stiff links or tiny masses) or use rm.Scene to "
                 "reduce the model")
         if sol.status == -1:    # too many steps in one output interval
-            hint = (f"More than max_steps={opts[-1]} steps in one output interval: a discontinuity that is not "
+            hint = (f"More than max_steps={max_steps} steps in one output interval: a discontinuity that is not "
                     f"declared (a callable signal that jumps: use Step/Table/Pulse, or Function(f, breakpoints=...)), "
                     f"a very stiff or chattering part, or simply a long interval (raise max_steps or lower dt_out)")
         hint = hint.rstrip(".")
@@ -509,10 +565,12 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
             f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}; components most involved: "
             f"{_blame(c, last_y, last_yp)}. {hint}.{c.stiffness_hint()}")
     n_rows = len(sol.t)
-    for k in range(1, n_rows):
-        if sol.status == 2 and k == n_rows - 1:
-            break                 # the event row is recorded by the caller, before and after settling
-        if k < len(record) and not record[k]:
-            continue
-        rec.add(sol.t[k], sol.y[k], sol.yp[k], modes, left=(sol.t[k] >= t_stop))
+    # rows 1.. of the solution, all at once; the event row (status 2) is recorded by the caller, before and
+    # after settling; rows beyond ``tspan`` (none in IDA's normal mode) would be kept
+    end = n_rows - 1 if sol.status == 2 else n_rows
+    wanted = np.concatenate([record, np.ones(max(0, end - len(record)), bool)])[1:max(end, 1)]
+    # all rows wanted (every segment but a two-point one): views, no copy of the output rows
+    keep = slice(1, max(end, 1)) if wanted.all() else np.arange(1, max(end, 1))[wanted]
+    T = np.asarray(sol.t)[keep]
+    rec.add_rows(T, np.asarray(sol.y)[keep], np.asarray(sol.yp)[keep], modes, T >= t_stop)
     return sol

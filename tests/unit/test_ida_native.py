@@ -1,0 +1,154 @@
+"""The native IDA path (``solver="ida", native=True``: SUNDIALS through ctypes, numba callbacks) against the
+scikit-sundae path on the same models: same solver and tolerances, answers within the tolerance of each
+other and of an accurate reference; models it cannot serve run the usual path and say why."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import regmech as rm
+from regmech.components import Damper, Fixed, IdealGear, Inertia, Speed, Spring, SpringDamper, Torque
+from regmech.library import coupled_clutches, first
+from regmech.signals import Constant, Function, Ramp, Sine, Step
+
+pytest.importorskip("numba")
+from regmech.solvers import ida_native  # noqa: E402
+
+if isinstance(ida_native.libraries(), str):
+    pytest.skip(f"native IDA not available: {ida_native.libraries()}", allow_module_level=True)
+
+
+def chain(n, tau=None, c=1e4, d=1.0):
+    m = rm.Model(f"chain{n}")
+    f = m.add(Fixed("fixed"))
+    drive = m.add(Torque("drive", tau=tau if tau is not None else Sine(amplitude=10.0, freq_hz=5.0)))
+    J = [m.add(Inertia(f"J{i}", J=1.0 + 0.01 * (i % 7), phi0=0.0, w0=0.0)) for i in range(n)]
+    m.connect(drive.flange, J[0].flange_a)
+    for i in range(n - 1):
+        sd = m.add(SpringDamper(f"sd{i}", c=c, d=d))
+        m.connect(J[i].flange_b, sd.flange_a)
+        m.connect(sd.flange_b, J[i + 1].flange_a)
+    end = m.add(Spring("ground_spring", c=1e3))
+    m.connect(J[-1].flange_b, end.flange_a)
+    m.connect(end.flange_b, f.flange)
+    return m
+
+
+def mixed_inputs():
+    """Every signal type the kernels evaluate, with time events (Step, Ramp corners) and a gear."""
+    m = rm.Model("mixed_inputs")
+    f = m.add(Fixed("fixed"))
+    J = [m.add(Inertia(f"J{i}", J=0.5 + 0.25 * i, w0=None if i == 1 else 0.3 * i)) for i in range(4)]
+    m.add(IdealGear("gear", ratio=2.5))
+    m.connect(J[0].flange_b, m.components["gear"].flange_a)
+    m.connect(m.components["gear"].flange_b, J[1].flange_a)
+    m.connect(m.components["gear"].support, f.flange)
+    for k, (a, b) in enumerate(((1, 2), (2, 3))):
+        s = m.add(SpringDamper(f"sd{k}", c=400.0 * (k + 1), d=2.0))
+        m.connect(J[a].flange_b, s.flange_a)
+        m.connect(s.flange_b, J[b].flange_a)
+    ground = m.add(Damper("ground_damper", d=3.0))
+    m.connect(J[3].flange_b, ground.flange_a)
+    m.connect(ground.flange_b, f.flange)
+    sources = [Sine(amplitude=4.0, freq_hz=3.0, phase=0.3, offset=0.5, start_time=0.1),
+               Step(height=-2.0, start_time=0.35, offset=0.2), Ramp(height=3.0, duration=0.4, start_time=0.2),
+               Constant(-0.7)]
+    for i, sig in enumerate(sources):
+        t = m.add(Torque(f"tq{i}", tau=sig))
+        m.connect(t.flange, J[i].flange_a)
+    return m
+
+
+def _compare(m, t_end, rtol, **kw):
+    a = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol, native=True, **kw)
+    b = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol, **kw)
+    assert a.stats.extra.get("native") is True
+    assert "native" not in b.stats.extra
+    np.testing.assert_array_equal(a.t, b.t)
+    return a, b
+
+
+@pytest.mark.parametrize("build, t_end", [(first, 1.0), (lambda: chain(10), 1.0), (mixed_inputs, 1.0),
+                                          (lambda: chain(60), 0.5)])
+def test_native_agrees_with_the_python_path_and_a_tight_reference(build, t_end):
+    m = build()
+    ref = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=1e-11, atol=1e-13)
+    a, b = _compare(m, t_end, 1e-7)
+    names = [n for n in ref.names if n.endswith((".w", ".phi"))]
+    for name in names:
+        scale = max(1e-12, float(np.ptp(ref[name])))
+        err_native = float(np.abs(a[name] - ref[name]).max()) / scale
+        err_python = float(np.abs(b[name] - ref[name]).max()) / scale
+        # the same method at the same tolerance: errors of the same size (round-off moves the steps)
+        assert err_native <= max(10.0 * err_python, 1e-6), (name, err_native, err_python)
+    assert a.stats.segments == b.stats.segments
+
+
+def test_native_band_solver_with_a_reordering():
+    m = chain(60)
+    c = m.compile()
+    from regmech.solvers.ida import choose_linsolver
+    assert choose_linsolver(c)[0] == "band"
+    a, b = _compare(m, 0.3, 1e-8)
+    speeds = np.array([b[f"J{i}.w"] for i in range(60)])
+    scale = float(np.ptp(speeds))          # relative to the range of the speeds (the far end barely moves)
+    for i in (0, 10, 30, 59):
+        assert float(np.abs(a[f"J{i}.w"] - b[f"J{i}.w"]).max()) <= 1e-5 * scale
+
+
+def test_native_segments_at_time_events_use_left_limits():
+    """A Step and a Ramp split the run; at each segment end the signals are read as left limits."""
+    m = mixed_inputs()
+    a, b = _compare(m, 1.0, 1e-9, atol=1e-11)
+    assert a.stats.segments == b.stats.segments >= 4
+    for name in ("J0.w", "J3.phi", "sd1.tau"):
+        scale = max(1e-12, float(np.ptp(b[name])))
+        assert float(np.abs(a[name] - b[name]).max()) <= 1e-6 * scale
+
+
+@pytest.mark.parametrize("model, reason", [
+    (coupled_clutches, "friction"),
+    (lambda: chain(3, tau=Function(lambda t: np.sin(t))), "Function"),
+])
+def test_models_the_native_path_cannot_serve_run_the_usual_path_and_say_why(model, reason):
+    m = model()
+    res = m.simulate(0.5, dt_out=0.05, solver="ida", native=True)
+    note = res.stats.extra.get("native")
+    assert isinstance(note, str) and note.startswith("not used") and reason in note
+    plain = m.simulate(0.5, dt_out=0.05, solver="ida")
+    np.testing.assert_array_equal(res["J1.w" if "J1.w" in res.names else "J0.w"],
+                                  plain["J1.w" if "J1.w" in plain.names else "J0.w"])
+
+
+def test_position_and_speed_sources_and_time_limits_are_not_native():
+    m = chain(3)
+    m.add(Speed("spd", w_ref=Sine(amplitude=1.0, freq_hz=1.0)))
+    m.connect(m.components["spd"].flange, m.components["J2"].flange_b)
+    res = m.simulate(0.2, dt_out=0.05, solver="ida", native=True)
+    assert "Position/Speed" in res.stats.extra["native"]
+    res = chain(3).simulate(0.2, dt_out=0.05, solver="ida", native=True, timeout_s=60)
+    assert "timeout_s" in res.stats.extra["native"]
+
+
+def test_native_failure_is_a_simulation_error_naming_the_model():
+    """IDA's own failure (too many steps) comes back as the usual SimulationError."""
+    m = chain(10)
+    with pytest.raises(rm.SimulationError, match="max_steps=3"):
+        m.simulate(1.0, dt_out=0.5, solver="ida", native=True, max_steps=3)
+
+
+def test_native_flag_is_checked():
+    with pytest.raises(rm.ParameterError, match="native"):
+        first().simulate(0.1, solver="ida", native="yes")
+
+
+def test_a_work_budget_still_counts_every_residual_call():
+    """The budget of the fuzz and hard-case benches wraps the compiled residual: neither the native path nor
+    the shortcut callback of the usual path may go around it."""
+    from regmech.bench.guard import WorkBudgetExceeded, work_budget
+    m = chain(5)
+    for native in (False, True):
+        with pytest.raises(WorkBudgetExceeded):
+            with work_budget(m, 40):
+                m.simulate(0.5, dt_out=0.1, solver="ida", native=native)
