@@ -152,3 +152,14 @@ def test_a_work_budget_still_counts_every_residual_call():
         with pytest.raises(WorkBudgetExceeded):
             with work_budget(m, 40):
                 m.simulate(0.5, dt_out=0.1, solver="ida", native=native)
+
+
+def test_native_reports_ida_s_own_step_count():
+    """The native path reads IDA's accepted steps (IDAGetNumSteps); the usual path counts attempts, which
+    are at least as many (accepted + rejected) on the same model and tolerances."""
+    m = chain(5, tau=Sine(amplitude=1.0, freq_hz=2.0))
+    native = m.simulate(1.0, 0.01, solver="ida", rtol=1e-6, native=True)
+    usual = m.simulate(1.0, 0.01, solver="ida", rtol=1e-6)
+    assert native.stats.extra["native"] is True
+    assert native.stats.extra["steps_are_attempts"] is False and "attempts" not in str(native.stats)
+    assert 10 < native.stats.steps <= usual.stats.steps <= 2 * native.stats.steps

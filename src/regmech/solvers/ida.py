@@ -345,6 +345,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
         why_not = eligible(c, linsolver, deadline)
         native = why_not is None
         stats.extra["native"] = True if native else f"not used: {why_not}"
+        if native:
+            stats.extra["steps_are_attempts"] = False        # the native path reads IDA's own step count
     opts = (rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native)
     reuse = {}        # the last segment's solver while it may start the next one (see _solve_segment)
     while t < t_end:

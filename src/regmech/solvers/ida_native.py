@@ -90,6 +90,7 @@ class _Libraries:
         self.clear_stop = sig(ida.IDAClearStopTime, i32, vp)
         self.n_res = sig(ida.IDAGetNumResEvals, i32, vp, ctypes.POINTER(lng))
         self.n_jac = sig(ida.IDAGetNumJacEvals, i32, vp, ctypes.POINTER(lng))
+        self.n_steps = sig(ida.IDAGetNumSteps, i32, vp, ctypes.POINTER(lng))
         self.free = sig(ida.IDAFree, None, ctypes.POINTER(vp))
         self.solve_address = ctypes.cast(ida.IDASolve, vp).value
         self._check_layout()
@@ -305,6 +306,9 @@ class NativeIDA:
         self.perm = np.arange(N) if order.perm is None else np.asarray(order.perm, np.int64)
         self._initialised = False
         self.tret = np.zeros(1)
+        # steps taken in the last solve, as the usual path's counter (``ida._make_solver``) reports them:
+        # here IDA's own count of accepted steps (IDAReInit sets it back to zero)
+        self.regmech_attempts = [None, 0]
 
     def set_t_right(self, t_right):
         """The time from which signals are read as left limits (``CompiledSystem._t_right``)."""
@@ -353,4 +357,7 @@ class NativeIDA:
         nf, nj = ctypes.c_long(), ctypes.c_long()
         lib.n_res(self.mem, ctypes.byref(nf))
         lib.n_jac(self.mem, ctypes.byref(nj))
+        ns = ctypes.c_long()
+        lib.n_steps(self.mem, ctypes.byref(ns))
+        self.regmech_attempts[1] += int(ns.value)
         return _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf.value), int(nj.value), unpermuted=True)
