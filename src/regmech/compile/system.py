@@ -14,7 +14,7 @@ Residual rows (``M`` diagonal masses, ``S`` compliant rows, ``G`` constraints):
     G_p v - g_p'(t);  G_v v - g_v(t)                   (their derivatives / speed rows)
     M a + S^T tau(e, e', z, t) + G^T lam               (motion, n rows)
     G_p a - g_p''(t); G_v a - g_v'(t)                  (acceleration level)
-    friction rows by mode (see ``components.friction``)
+    friction rows by mode (see ``compile.friction_rows``)
     z' - h(e, e', z, t)                                (device states)
 
 with ``e = S x + e0``. This is the dummy-derivative form: the position
@@ -33,6 +33,7 @@ from ..errors import RegularityWarning, SimulationError, StructureError
 from ..structure.system import START_RTOL, MechanicalStructure, build_structure, constraint_start_conflict
 from .assembly import PatternBuilder, kernel_terms
 from .evaluation import EvaluationPlan, JacobianPlan
+from .friction_rows import FrictionRows
 from .kernels import KernelGroup, template_for
 
 #: the acceleration-level (KKT) system counts as singular when its smallest LU pivot is below this fraction
@@ -72,8 +73,8 @@ class CompiledSystem:
         self.friction = None
         self.nw_friction = 0
         if st.friction:
-            from ..components.friction import FrictionSet   # components sit above compile in the layers
-            self.friction = FrictionSet(self, st.friction)
+            # the rows' equations in their current modes; regmech.hybrid.attach adds the mode logic
+            self.friction = FrictionRows(self, st.friction)
             self.nw_friction = self.friction.add_pattern(self._pb, self.nw_kernel)
             self.jac = self._pb.build()
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
