@@ -68,7 +68,10 @@ class FrictionDevice(Device):
 
     def capacity_function(self):
         """A fast closure ``(t, left) -> (fn, tau0, tau0_max)`` with the parameters bound
-        (the event functions call it at every root-finding iterate)."""
+        (the event functions call it at every root-finding iterate). A closure may say what it
+        depends on besides constants: ``at.signals``, a tuple of the device's signals (without it,
+        anything); the event functions then evaluate it once per segment when all of them are
+        constant between their breakpoints (``hybrid.events``)."""
         def at(t, left=False):
             tau0, tau0_max = self.capacities(t, left)
             return self.normal_force(t, left), tau0, tau0_max
@@ -142,6 +145,7 @@ class Clutch(_MuMixin, FrictionDevice):
             fn = fn_max * sig.value(t, left)
             tau0 = k0 * fn if fn > 0 else 0.0
             return fn, tau0, peak * tau0
+        at.signals = (sig,)
         return at
 
 

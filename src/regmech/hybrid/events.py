@@ -22,7 +22,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..modes import FREE, HELD, STUCK
+from ..signals import Constant, Step
 from .gears import gear_events
+
+#: what a device's first function is in the segment's modes (``_small_plan``)
+_STUCK, _STUCK_ONE_WAY, _FREE_ONE_WAY, _CONSTANT, _SLIDING = range(5)
+
+
+def _steady(cap_fn) -> bool:
+    """True when a capacity function depends only on signals that are constant between their
+    breakpoints: every solver ends a segment at those, so the value is the segment's."""
+    signals = getattr(cap_fn, "signals", None)
+    return signals is not None and all(type(s) in (Constant, Step) for s in signals)
 
 
 class EventFunctions:
@@ -32,11 +43,14 @@ class EventFunctions:
         self.n_events = 2 * self.mf
         self.engaged = np.ones(self.mf, bool)      # engagement at the start of the current segment
         self._at_key, self._at_val = None, None
+        self._at_segment = None                    # capacities at the segment's first call (``_at``)
         self._cap_fns = [d.capacity_function() for d in self.devices]
+        self._varying = [j for j, f in enumerate(self._cap_fns) if not _steady(f)]
         self._one_way = np.array([d.one_way for d in self.devices], bool)
         self._ev_key, self._ev_masks = None, None
         self._relief = []      # (row, holder's lam index, sign, tol): see Holding._relief_events
         self._small = None
+        self._small_for, self._small_steps = None, None
         if self.mf <= 8 and not self._coupled_rows:
             Gc = self.G.tocsr()
             c = self.c
@@ -44,12 +58,12 @@ class EventFunctions:
                             [float(x) for x in Gc.data[Gc.indptr[j]:Gc.indptr[j + 1]]],
                             int(c.ilam[self.offset + j]), bool(self._one_way[j]), self._cap_fns[j])
                            for j in range(self.mf)]
-            self._ev_out = np.empty(self.n_events)
 
     # -- pickling: the capacity functions are closures; they are made again from the devices ---------
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_cap_fns"] = None
+        state["_small_for"], state["_small_steps"] = None, None      # the plan holds them too
         if self._small is not None:
             state["_small"] = [row[:-1] for row in self._small]      # the last entry is the capacity function
         return state
@@ -62,38 +76,82 @@ class EventFunctions:
 
     def _at(self, t, left):
         """Normal forces and (tau0, tau0_max) of every device at t, cached for the last t
-        (IDA evaluates residual and event functions at the same instants)."""
+        (IDA evaluates residual and event functions at the same instants). Devices whose capacities
+        depend only on signals constant between breakpoints (``_steady``) keep the values of the
+        segment's first call (``settle`` drops them); only the others are evaluated again."""
         key = (t, left)
         if self._at_key != key:
-            vals = np.array([f(t, left) for f in self._cap_fns]).reshape(self.mf, 3)
+            if self._at_segment is None:
+                vals = np.array([f(t, left) for f in self._cap_fns]).reshape(self.mf, 3)
+                self._at_segment = vals
+            else:
+                vals = self._at_segment.copy()
+                for j in self._varying:
+                    vals[j] = self._cap_fns[j](t, left)
             self._at_key, self._at_val = key, (vals[:, 0], vals[:, 1:])
         return self._at_val
+
+    def _small_plan(self, modes, t, left):
+        """What each device's first function needs in the segment's modes, in Python numbers.
+
+        Made at the first call of a segment (``settle`` drops it; a plan belongs to one ``modes``
+        array and one ``engaged`` array, the objects a segment runs with): the mode decides which
+        function a device has, so the call does not test it again, and the first function of a
+        free or held two-way device is the constant 1; the capacities of a device whose normal
+        force is a ``Constant`` or a ``Step`` are those at ``t`` (the whole segment's). numpy
+        scalars cost about 0.1 us an access, which for three clutches was most of the call.
+        """
+        plan = []
+        for j, (cols, coefs, il, one_way, cap_fn) in enumerate(self._small):
+            m = int(modes[j])
+            if m == STUCK:
+                kind = _STUCK_ONE_WAY if one_way else _STUCK
+            elif m == FREE and one_way:
+                kind = _FREE_ONE_WAY
+            elif m == FREE or m == HELD:
+                kind = _CONSTANT
+            else:
+                kind = _SLIDING
+            # capacities that depend only on signals constant between breakpoints (time events, where a
+            # segment ends) keep the value they have at any instant of the segment: evaluated once
+            steady = cap_fn(t, left) if _steady(cap_fn) else None
+            plan.append((kind, il, tuple(zip(cols, coefs)), float(m), cap_fn, bool(self.engaged[j]), steady))
+        relief = [(2 * j, il, float(modes[j]) * sign, tol) for j, il, sign, tol in self._relief]
+        self._small_for = (modes, self.engaged)
+        self._small_steps = (plan, relief)
 
     def _event_values_small(self, t, left, y, modes):
         """The same functions in plain Python for a few devices without lossy gears: IDA calls them
         several times per step, and for three clutches numpy's per-call overhead dominates."""
-        out = self._ev_out
-        for j, (cols, coefs, il, one_way, cap_fn) in enumerate(self._small):
-            m = modes[j]
-            fn, tau0, tau0_max = cap_fn(t, left)
-            if m == STUCK:
-                lam = y[il]
-                out[2 * j] = tau0_max - (lam if one_way else abs(lam))
+        held = self._small_for
+        if held is None or held[0] is not modes or held[1] is not self.engaged:
+            self._small_plan(modes, t, left)
+        plan, relief = self._small_steps
+        y = y.tolist()
+        out = []
+        for kind, il, row, m, cap_fn, engaged, steady in plan:
+            fn, _, tau0_max = steady or cap_fn(t, left)
+            if kind == _SLIDING:
+                w = 0.0
+                for k, cf in row:
+                    w += cf * y[k]
+                g = m * w
+                out.append(g if g != 0.0 else 1e-300)
+            elif kind == _STUCK:
+                out.append(tau0_max - abs(y[il]))
+            elif kind == _CONSTANT:
+                out.append(1.0)
+            elif kind == _STUCK_ONE_WAY:
+                out.append(tau0_max - y[il])
             else:
                 w = 0.0
-                for k, cf in zip(cols, coefs):
+                for k, cf in row:
                     w += cf * y[k]
-                if m == FREE:
-                    out[2 * j] = w if one_way else 1.0
-                elif m == HELD:
-                    out[2 * j] = 1.0
-                else:
-                    g = m * w
-                    out[2 * j] = g if g != 0.0 else 1e-300
-            out[2 * j + 1] = fn if self.engaged[j] else (-fn if fn != 0.0 else 1e-300)
-        for j, il, sign, tol in self._relief:
-            out[2 * j] = modes[j] * sign * y[il] + tol
-        return out
+                out.append(w)
+            out.append(fn if engaged else (-fn if fn != 0.0 else 1e-300))
+        for o, il, ms, tol in relief:
+            out[o] = ms * y[il] + tol
+        return np.array(out)
 
     def event_values(self, t, y, yp, modes):
         """The ``2 * mf`` event functions at ``(t, y)`` in the segment's ``modes`` (module docstring);

@@ -11,8 +11,15 @@ together (MSL CoupledClutches at t = 0.831 s and 1.000 s).
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg.lapack import dgetrf, dgetrs
 
+from ..compile.system import PIVOT_TOL
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
+from ..structure.system import START_RTOL
+
+#: the most unknowns (coordinates and rows) for which stuck devices are locked densely (``_lock_dense``);
+#: the same single-threaded range as ``compile.kkt.DENSE_MAX``
+LOCK_DENSE_MAX = 128
 
 
 class Holding:
@@ -27,9 +34,42 @@ class Holding:
         w = self.w_rel(v)
         if np.all(w[lock] == 0.0):
             return v
-        c = self.c
-        _, v2 = c.project(t, x, v, None, None, np.where(lock, STUCK, FREE))
+        v2 = self._lock_dense(t, v, lock)
+        if v2 is None:
+            _, v2 = self.c.project(t, x, v, None, None, np.where(lock, STUCK, FREE))
         return v2
+
+    def _lock_dense(self, t, v, lock):
+        """The projection of ``_lock_velocities`` for a small system, dense, or None.
+
+        The velocities closest to ``v`` in the mass norm that meet the rigid rows at velocity
+        level (``G_pv v = g``, sources included) and ``w_rel = 0`` of the locked rows ``A``:
+        ``v + M^-1 A^T y`` with ``(A M^-1 A^T) y = r``, one step of refinement, as
+        ``CompiledSystem.project`` does it with sparse matrices (about 3 ms a call for
+        CoupledClutches, most of it sparse bookkeeping, against some 50 us dense). None (the
+        caller then projects with ``project``, which also reports conflicting constraints by
+        name) when the system is large, the rows are dependent, or the result misses them.
+        """
+        c = self.c
+        if self._Gd is None or c.n + c.mp + c.mv + self.mf > LOCK_DENSE_MAX:
+            return None
+        rigid = c.__dict__.get("_lock_rigid")
+        if rigid is None:
+            rigid = c._lock_rigid = c.Gpv.toarray()
+        gp, gv = c._refs(t)
+        A = np.vstack([rigid, self._Gd[lock]])
+        r = np.concatenate([gp[1], gv[0], np.zeros(int(lock.sum()))]) - A @ v
+        inv_m = 1.0 / np.maximum(c.mass, 1e-300 + 1e-12 * c.mass.max(initial=1.0))
+        lu, piv, info = dgetrf((A * inv_m) @ A.T)
+        d = np.abs(np.diagonal(lu))
+        if info != 0 or not np.all(np.isfinite(d)) or d.min(initial=1.0) <= PIVOT_TOL * d.max(initial=1.0):
+            return None
+        dv = inv_m * (A.T @ dgetrs(lu, piv, r)[0])
+        dv += inv_m * (A.T @ dgetrs(lu, piv, r - A @ dv)[0])
+        scale = np.maximum(1.0, np.abs(r) + np.abs(A) @ np.abs(dv))
+        if not np.all(np.isfinite(dv)) or np.max(np.abs(A @ dv - r) / scale, initial=0.0) > 1e-3 * START_RTOL:
+            return None
+        return v + dv
 
     def _share_redundant(self, t, x, v, z, modes) -> bool:
         """Resolve stuck devices that lock a motion already locked by others.

@@ -134,6 +134,7 @@ class ModeLogic:
         y, yp = self._assemble_restart(t, x, v, z, new, lam)
         self._relief = self._relief_events(t, y, yp, new, scale)
         self._ev_key = None
+        self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
         self.engaged = np.array([d.normal_force(t, False) > 0 for d in self.devices])
         changes = []
         if not initial:
