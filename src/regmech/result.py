@@ -25,8 +25,7 @@ import numpy as np
 from . import units as units_mod
 from ._numbers import describe
 from .errors import RegmechError, UnknownSignalError
-
-MODE_NAMES = {-1: "Backward", 0: "Stuck", 1: "Forward", 2: "Free", 3: "Held"}
+from .modes import MODE_NAMES
 
 
 DRIVING_NAMES = {1: "flange_a drives", -1: "flange_b drives"}

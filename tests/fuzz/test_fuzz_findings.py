@@ -57,10 +57,16 @@ def _servo_and_clutch():
     return m
 
 
-@pytest.mark.xfail(strict=True, reason="fuzz finding F2 (seed 31): the ODE-form solvers test friction event "
-                   "functions only at step ends; a relative speed that a prescribed motion makes change sign "
-                   "twice within one step is missed, and the answer is silently wrong")
-@pytest.mark.parametrize("solver", ["scipy:DOP853", "scipy:RK45"])
+_F2 = ("fuzz finding F2 (seed 31): the ODE-form solvers test friction event functions only at step ends; a "
+       "relative speed that a prescribed motion makes change sign twice within one step is missed, and the answer "
+       "is silently wrong")
+
+
+# DOP853 at rtol 1e-8 ends either with the right answer (11 events, 7e-9 of the range) or refused as diverged
+# (the roughness test of solvers.divergence on J3's small stick/slip state), by round-off: before the dense KKT
+# solve it was refused at 1e-8 and 1e-9, with it at 1e-9 only; right at 1e-6, 1e-7 and 1e-10 both ways
+@pytest.mark.parametrize("solver", [pytest.param("scipy:DOP853", marks=pytest.mark.xfail(strict=False, reason=_F2)),
+                                    pytest.param("scipy:RK45", marks=pytest.mark.xfail(strict=True, reason=_F2))])
 def test_ode_form_solvers_find_friction_events_within_a_step(solver):
     """A servo shakes J1 at 26 Hz; the clutch to the heavy J3 slips forward and backward (11 mode changes
     in 0.2 s under ida). J3 moves under a constant friction torque, its motion is a polynomial, so the

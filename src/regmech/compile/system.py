@@ -14,7 +14,7 @@ Residual rows (``M`` diagonal masses, ``S`` compliant rows, ``G`` constraints):
     G_p v - g_p'(t);  G_v v - g_v(t)                   (their derivatives / speed rows)
     M a + S^T tau(e, e', z, t) + G^T lam               (motion, n rows)
     G_p a - g_p''(t); G_v a - g_v'(t)                  (acceleration level)
-    friction rows by mode (see ``components.friction``)
+    friction rows by mode (see ``compile.friction_rows``)
     z' - h(e, e', z, t)                                (device states)
 
 with ``e = S x + e0``. This is the dummy-derivative form: the position
@@ -31,8 +31,10 @@ import scipy.sparse.linalg as spla
 
 from ..errors import RegularityWarning, SimulationError, StructureError
 from ..structure.system import START_RTOL, MechanicalStructure, build_structure, constraint_start_conflict
+from . import kkt
 from .assembly import PatternBuilder, kernel_terms
 from .evaluation import EvaluationPlan, JacobianPlan
+from .friction_rows import FrictionRows
 from .kernels import KernelGroup, template_for
 
 #: the acceleration-level (KKT) system counts as singular when its smallest LU pivot is below this fraction
@@ -72,8 +74,8 @@ class CompiledSystem:
         self.friction = None
         self.nw_friction = 0
         if st.friction:
-            from ..components.friction import FrictionSet   # components sit above compile in the layers
-            self.friction = FrictionSet(self, st.friction)
+            # the rows' equations in their current modes; regmech.hybrid.attach adds the mode logic
+            self.friction = FrictionRows(self, st.friction)
             self.nw_friction = self.friction.add_pattern(self._pb, self.nw_kernel)
             self.jac = self._pb.build()
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
@@ -251,43 +253,12 @@ class CompiledSystem:
 
     # ----------------------------------------------------- consistent values
     def _kkt(self, modes, relations):
-        """Sparse LU of the acceleration-level system for a mode set, cached.
-
-        Unknowns (a, lam); rows: motion ``M a + G^T lam = f``; position/speed rows at
-        acceleration level ``G_pv a = g``; friction row j: ``G_f[j] a = 0`` when stuck,
-        else ``c_own lam_j + c_cpl lam_cpl = rhs`` (``relations``: per row (c_own, c_cpl)).
-        """
+        """LU of the acceleration-level system for a mode set (``compile.kkt``), cached per mode set."""
         key = (tuple(int(m) for m in modes), tuple(relations)) if self.mf else ()
         hit = self._kkt_cache.get(key)
         if hit is not None:
             return hit
-        m = self.m
-        blocks = [[sp.diags(self.mass), self.GallT], [self.Gpv, sp.csr_matrix((self.mp + self.mv, m))]]
-        if self.mf:
-            fr = self.friction
-            stuck = np.asarray(modes) == 0
-            ra = sp.diags(stuck.astype(float)) @ self.Gf
-            rows, cols, vals = [], [], []
-            for j, (c_own, c_cpl) in enumerate(relations):
-                if stuck[j]:
-                    continue
-                rows.append(j)
-                cols.append(self.mp + self.mv + j)
-                vals.append(c_own)
-                if fr.coupled[j] >= 0 and c_cpl != 0.0:
-                    rows.append(j)
-                    cols.append(fr.coupled[j])
-                    vals.append(c_cpl)
-            rl = sp.csr_matrix((vals, (rows, cols)), shape=(self.mf, m))
-            blocks.append([ra, rl])
-        K = sp.bmat(blocks, format="csc")
-        try:
-            lu = spla.splu(K)
-            d = np.abs(lu.U.diagonal())
-            if d.size and d.min() <= PIVOT_TOL * d.max():
-                lu = None
-        except RuntimeError:
-            lu = None
+        lu = kkt.factorise(self, modes, relations, PIVOT_TOL)
         if lu is None:
             msg = self.mass_spread_message()
             if msg is None:

@@ -35,6 +35,7 @@ import warnings
 import numpy as np
 
 from ..errors import SimulationError
+from ..hybrid import attach
 from ..result import Event, Result, Stats
 from . import register
 from .common import (Recorder, StateScale, check_link_spread, check_times, output_grid, run_deadline,
@@ -320,7 +321,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
         order = _Ordering(c.N)
     grid = output_grid(t_start, t_end, dt_out)
     bps = signal_breakpoints(model, t_start, t_end)
-    fr = c.friction
+    fr = attach(c).friction      # the friction rows with their mode logic (hybrid/)
     modes = fr.start_modes(t_start) if fr else c.modes0
     c._t_right = bps[0] if bps else np.inf
     stats = Stats(solver="ida", compile_time=compile_time, steps=0)   # step attempts (see _make_solver)

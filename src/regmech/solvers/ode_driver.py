@@ -38,6 +38,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import SimulationError
+from ..hybrid import attach
 from ..result import Event, Result, Stats
 from .common import Recorder, check_times, output_grid, run_deadline, scale_hint, signal_breakpoints
 from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROUGH,  # noqa: F401 (BLOW_UP
@@ -634,7 +635,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     t0 = time.perf_counter()
     grid = output_grid(t_start, t_end, dt_out)
     stops = signal_breakpoints(model, t_start, t_end) + [t_end]
-    fr = c.friction
+    fr = attach(c).friction      # the friction rows with their mode logic (hybrid/)
     modes = fr.start_modes(t_start) if fr else c.modes0
     stop_iter = iter(stops)
     t_stop = next(stop_iter)

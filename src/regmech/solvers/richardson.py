@@ -89,6 +89,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import AccuracyError, SimulationError
+from ..hybrid import attach
 from .common import check_times, output_grid, signal_breakpoints
 from .ode_driver import GridProbe, GroupedKnotClock, KnotClock, simulate_ode
 
@@ -235,7 +236,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
             f"{needed:,} steps, more than max_steps={max_steps:,} (minutes to hours of work, and twice that "
             f"again for the error estimate). Use a larger step (tol checks that it is accurate enough), an "
             f"adaptive solver ('ida', 'scipy:DOP853'), a shorter run, or raise max_steps.")
-    c = model.compile()
+    c = attach(model.compile())
     start_state = _mutable_state(c.friction) if c.friction else None
     times = _probe_times(model, t_start, t_end, dt_out) if tol is not None else None
     main_probe = GridProbe(times) if tol is not None else None

@@ -1,0 +1,162 @@
+"""Holding torques of stuck devices: locking their relative speed, sharing a motion that several of
+them lock ("holding in turn"), and the relief of a device that slides at zero speed while another
+holds its motion.
+
+The holding torques themselves come from one KKT solve of the acceleration-level equations of the
+whole system with every stuck row as a constraint (``CompiledSystem.accelerations``, factorised once
+per mode set), so that several devices locked on one rigid group are compared with their capacities
+together (MSL CoupledClutches at t = 0.831 s and 1.000 s).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg.lapack import dgetrf, dgetrs
+
+from ..compile.system import PIVOT_TOL
+from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
+from ..structure.system import START_RTOL
+
+#: the most unknowns (coordinates and rows) for which stuck devices are locked densely (``_lock_dense``);
+#: the same single-threaded range as ``compile.kkt.DENSE_MAX``
+LOCK_DENSE_MAX = 128
+
+
+class Holding:
+    """Stuck devices and their holding torques (mixin of ``FrictionSet``)."""
+
+    def _lock_velocities(self, t, x, v, new, old):
+        """Make w_rel exactly zero for devices that are (or were) stuck: a mass-weighted
+        (impulse) projection, so momentum is conserved."""
+        lock = (new == STUCK) | (old == STUCK)
+        if not lock.any():
+            return v
+        w = self.w_rel(v)
+        if np.all(w[lock] == 0.0):
+            return v
+        v2 = self._lock_dense(t, v, lock)
+        if v2 is None:
+            _, v2 = self.c.project(t, x, v, None, None, np.where(lock, STUCK, FREE))
+        return v2
+
+    def _lock_dense(self, t, v, lock):
+        """The projection of ``_lock_velocities`` for a small system, dense, or None.
+
+        The velocities closest to ``v`` in the mass norm that meet the rigid rows at velocity
+        level (``G_pv v = g``, sources included) and ``w_rel = 0`` of the locked rows ``A``:
+        ``v + M^-1 A^T y`` with ``(A M^-1 A^T) y = r``, one step of refinement, as
+        ``CompiledSystem.project`` does it with sparse matrices (about 3 ms a call for
+        CoupledClutches, most of it sparse bookkeeping, against some 50 us dense). None (the
+        caller then projects with ``project``, which also reports conflicting constraints by
+        name) when the system is large, the rows are dependent, or the result misses them.
+        """
+        c = self.c
+        if self._Gd is None or c.n + c.mp + c.mv + self.mf > LOCK_DENSE_MAX:
+            return None
+        rigid = c.__dict__.get("_lock_rigid")
+        if rigid is None:
+            rigid = c._lock_rigid = c.Gpv.toarray()
+        gp, gv = c._refs(t)
+        A = np.vstack([rigid, self._Gd[lock]])
+        r = np.concatenate([gp[1], gv[0], np.zeros(int(lock.sum()))]) - A @ v
+        inv_m = 1.0 / np.maximum(c.mass, 1e-300 + 1e-12 * c.mass.max(initial=1.0))
+        lu, piv, info = dgetrf((A * inv_m) @ A.T)
+        d = np.abs(np.diagonal(lu))
+        if info != 0 or not np.all(np.isfinite(d)) or d.min(initial=1.0) <= PIVOT_TOL * d.max(initial=1.0):
+            return None
+        dv = inv_m * (A.T @ dgetrs(lu, piv, r)[0])
+        dv += inv_m * (A.T @ dgetrs(lu, piv, r - A @ dv)[0])
+        scale = np.maximum(1.0, np.abs(r) + np.abs(A) @ np.abs(dv))
+        if not np.all(np.isfinite(dv)) or np.max(np.abs(A @ dv - r) / scale, initial=0.0) > 1e-3 * START_RTOL:
+            return None
+        return v + dv
+
+    def _share_redundant(self, t, x, v, z, modes) -> bool:
+        """Resolve stuck devices that lock a motion already locked by others.
+
+        Rule (documented in the README, "holding in turn"): going through the stuck
+        devices in model order, a device whose relative motion is already fixed by
+        the rigid constraints and the stuck devices before it is *Held*: it stays at
+        zero relative speed and transmits no torque, so the holding torque is unique
+        and carried by the first device. When that holder's load passes its static
+        capacity it does not let the motion go: it acts with its kinetic torque at
+        zero speed (sliding, held) and the held devices hold again, next in model
+        order (``settle``). The motion breaks away when the last holder's share
+        passes its capacity: for two devices, at ``kinetic(first) + static(second)``.
+        When the load falls back so that the holder would resist the kinetic torque
+        of a device sliding at zero speed, that device sticks again
+        (``_relief_events``). Friction thus never drives the motion it holds.
+        Returns False when no stuck friction row is redundant (the model itself is
+        singular).
+        """
+        c = self.c
+        A = [c.Gpv.toarray()] if c.Gpv.shape[0] else []
+        rank = np.linalg.matrix_rank(np.vstack(A)) if A else 0
+        dependent = []
+        for j in np.nonzero(np.asarray(modes) == STUCK)[0]:
+            row = self.G[j].toarray()
+            r = np.linalg.matrix_rank(np.vstack(A + [row]))
+            if r > rank:
+                A.append(row)
+                rank = r
+            else:
+                dependent.append(j)
+        if not dependent:
+            return False
+        modes[dependent] = HELD
+        return True
+
+    def _relief_events(self, t, y, yp, modes, scale):
+        """Event rows for devices sliding at zero speed while one stuck device holds their motion.
+
+        Such a device (a holder that passed its capacity, see ``_share_redundant``) acts with
+        its kinetic torque ``lam_j = mode_j tau_k`` and the holder ``h`` carries the rest. With
+        a virtual motion ``dv`` that keeps the rigid constraints and the other stuck devices and
+        moves the holder by ``G_h dv = 1``, the device moves by ``c = G_j dv``: the holder's torque
+        acts on the device's coordinate as ``lam_h / c``. Sharing means both resist in the same
+        direction, ``mode_j sign(c) lam_h >= 0``; the event function is that product plus a
+        tolerance (1e-9 of the device's torque, so that it starts positive when the holder's
+        share starts at zero) and crosses zero when the load has fallen below the device's
+        kinetic torque: the device then sticks again. With several holders of one motion no
+        function is set (the device stays sliding until its own speed leaves zero).
+        """
+        c = self.c
+        x, v, a, lam_all, _ = c.unpack(y, yp)
+        w = self.w_rel(v)
+        arel = self.w_rel(a)
+        lam = lam_all[self.offset:]
+        # a device that has just broken away also has w_rel ~ 0, but it accelerates; only one whose
+        # relative acceleration is zero as well can be held (the rank tests below are dense: keep them rare)
+        a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
+        sliding = [j for j in range(self.mf)
+                   if modes[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol]
+        stuck = [int(h) for h in np.nonzero(np.asarray(modes) == STUCK)[0]]
+        if not sliding or not stuck:
+            return []
+        rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
+        G = self.G.toarray()
+
+        def spans(rows, target):
+            base = np.vstack([rigid] + [G[k][None, :] for k in rows])
+            return np.linalg.matrix_rank(np.vstack([base, target[None, :]])) == np.linalg.matrix_rank(base)
+
+        out = []
+        for j in sliding:
+            if not spans(stuck, G[j]):
+                continue                 # its motion is free: it is really sliding
+            holders = [h for h in stuck if not spans([k for k in stuck if k != h], G[j])]
+            if len(holders) != 1:
+                continue
+            h = holders[0]
+            others = [k for k in stuck if k != h]
+            A = np.vstack([rigid] + [G[k][None, :] for k in others] + [G[h][None, :]])
+            rhs = np.zeros(A.shape[0])
+            rhs[-1] = 1.0
+            dv = np.linalg.lstsq(A, rhs, rcond=None)[0]
+            cj = float(G[j] @ dv)
+            if abs(cj) < 1e-12:
+                continue
+            tol = 1e-9 * max(1.0, abs(float(lam[j])))
+            out.append((j, int(c.ilam[self.offset + h]), float(np.sign(cj)), tol))
+        return out
+

@@ -1,0 +1,167 @@
+"""The mode logic of friction and loss elements: iterating the modes at an event to a consistent set.
+
+As MSL does it (``PartialFriction``; shared/notes friction.md):
+
+* sliding -> Stuck when ``w_rel`` reaches zero (root of ``mode * w_rel``, decreasing); the new
+  Stuck mode is checked only in the next iteration;
+* Stuck -> Forward/Backward when the holding torque leaves ``[-tau0_max, tau0_max]`` (root of
+  ``tau0_max - |lam|``); after break-away the kinetic torque at zero speed is ``tau0 < tau0_max``,
+  so the device accelerates away (hysteresis, no chattering);
+* any mode -> Free when the normal force drops to <= 0; Free -> sliding by the sign of ``w_rel``
+  when it becomes positive (Stuck if ``w_rel`` is 0);
+* the holding torques of *all* stuck devices come from one KKT solve (``holding``), and the logic
+  iterates until no mode changes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SimulationError, StructureError
+from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
+from .gears import gear_first_step
+
+
+class ModeLogic:
+    """``settle``: the event iteration of a ``FrictionSet`` (mixin)."""
+
+    def settle(self, t, state, modes, crossed=None, initial=False):
+        """Iterate the mode logic at time t to a consistent set; returns (y, yp, modes, changes).
+
+        ``changes``: ``(device name, old, new, kind)`` per change, ``kind`` "mode" (old and new
+        mode) or "driving side" (a lossy gear rolling on with power now flowing the other way;
+        old and new are the driving flange, ``LossyGear.driving_flange``).
+        """
+        c = self.c
+        if initial:
+            self.quadrant[:] = 1      # a fresh start decides the driving sides from the state alone
+        side_old = [d.driving_flange(m0, q) if d.coupled else 0
+                    for d, m0, q in zip(self.devices, np.asarray(modes, dtype=int), self.quadrant)]
+        left = False   # the new segment: right limits
+        if state is None:
+            y0, yp0 = c.initial_y(t, np.full(self.mf, FREE))
+        else:
+            y0, yp0 = state
+        x, v, a, lam, z = c.unpack(y0, yp0)
+        old = np.array(modes, dtype=int)
+        new = old.copy()
+        w = self.w_rel(v)
+        arel = self.w_rel(a)
+        lam_rate = yp0[c.ilam[self.offset:]]        # d lam/dt at the event (IDA's interpolant)
+        scale = 1e-9 * max(1.0, float(np.abs(v).max(initial=0.0)))
+        crossed = np.zeros(self.n_events) if crossed is None else np.asarray(crossed)
+        # devices sliding at zero speed while another one holds the motion (see _relief_events):
+        # their speed is zero by the holder's constraint, so its round-off sign says nothing;
+        # only their relief event (or an event of the holder, below) changes them
+        for j, *_ in ([] if initial else self._relief):
+            w[j] = 0.0
+        # 1. engagement and the crossings that were found
+        for j, dev in enumerate(self.devices):
+            engaged = dev.normal_force(t, left) > 0
+            if dev.coupled:
+                new[j] = gear_first_step(dev, int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
+                                         initial, scale, arel[j])
+                if old[j] in (FORWARD, BACKWARD) and new[j] == old[j] and crossed[2 * j + 1] != 0:
+                    self.quadrant[j] = -self.quadrant[j]   # the driving side changed (checked in step 2)
+                continue
+            if dev.one_way:
+                new[j] = self._one_way_step(dev, j, old[j], engaged, w[j], lam[self.offset + j],
+                                            crossed[2 * j] != 0, initial, scale, t)
+                continue
+            if not engaged:
+                new[j] = FREE
+            elif initial or old[j] == FREE:
+                new[j] = FORWARD if w[j] > 0 else BACKWARD if w[j] < 0 else STUCK
+            elif old[j] == HELD:
+                # its holders kept it at zero speed (to round-off): it holds again unless it has moved
+                new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
+            elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
+                                                     (abs(w[j]) <= scale and
+                                                      (w[j] * arel[j] < 0 or old[j] * w[j] < 0))):
+                # found by the root finder, or within round-off of zero and still approaching it, or
+                # already past it by round-off (several devices reaching zero slip at one instant;
+                # a device that has just broken away has w_rel ~ 0 too, but on its own side, leaving)
+                new[j] = STUCK
+            elif old[j] == STUCK and crossed[2 * j] != 0:
+                # the root of tau0_max - |lam| was located (to round-off) on either side of zero:
+                # the crossing itself decides, so the restart is where the condition has flipped
+                new[j] = FORWARD if lam[self.offset + j] > 0 else BACKWARD
+        self._flips = set()
+        # 2. stuck devices: holding torques of the whole stuck set from one KKT solve; every device
+        #    beyond its tau0_max breaks away at once (as in one Modelica event iteration), then repeat
+        for _ in range(4 * self.mf + 4):
+            v = self._lock_velocities(t, x, v, new, old)
+            try:
+                a, lam, dz = c.accelerations(t, x, v, z, new)
+            except StructureError:
+                if not self._share_redundant(t, x, v, z, new):
+                    raise
+                continue
+            lam_f = lam[self.offset:]
+            changed = False
+            for j, dev in enumerate(self.devices):
+                if dev.coupled:
+                    if new[j] == STUCK:
+                        d = dev.breakaway(lam_f[j], lam[self.coupled[j]])
+                        if d:
+                            new[j] = d
+                            changed = True
+                    elif new[j] in (FORWARD, BACKWARD) and \
+                            self._fix_quadrant(j, dev, new, t, x, v, z, a, lam, dz):
+                        changed = True
+                    continue
+                if new[j] != STUCK:
+                    continue
+                tau0, tau0_max = dev.capacities(t, left)
+                # a load within round-off of the capacity and still rising breaks away with the others
+                # (symmetric devices, e.g. two wheels on one open differential, reach it together)
+                tie = 1e-9 * tau0_max
+                if lam_f[j] > tau0_max * (1 + 1e-12) or (lam_f[j] > tau0_max - tie and lam_rate[j] > 0):
+                    new[j] = FORWARD if (not dev.one_way or dev.normal_force(t, left) > 0) else FREE
+                    changed = True
+                elif (lam_f[j] < -tau0_max * (1 + 1e-12) or (lam_f[j] < -tau0_max + tie and lam_rate[j] < 0)) \
+                        and not dev.one_way:
+                    new[j] = BACKWARD
+                    changed = True
+            if not changed:
+                break
+            # a holder let go: the devices it held (Held, at zero speed) hold again, and the
+            # rule of _share_redundant decides among them on the next pass
+            new[new == HELD] = STUCK
+        else:
+            raise SimulationError(f"stick/slip logic did not settle at t={t:.9g} for "
+                                  f"{[d.name for d in self.devices]}")
+        y, yp = self._assemble_restart(t, x, v, z, new, lam)
+        self._relief = self._relief_events(t, y, yp, new, scale)
+        self._ev_key = None
+        self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
+        self.engaged = np.array([d.normal_force(t, False) > 0 for d in self.devices])
+        changes = []
+        if not initial:
+            for j, dev in enumerate(self.devices):
+                if old[j] != new[j]:
+                    changes.append((dev.name, int(old[j]), int(new[j]), "mode"))
+                if dev.coupled and old[j] in (FORWARD, BACKWARD) and new[j] in (FORWARD, BACKWARD):
+                    side = dev.driving_flange(new[j], self.quadrant[j])
+                    if side != side_old[j]:
+                        changes.append((dev.name, side_old[j], side, "driving side"))
+        return y, yp, new, changes
+
+    @staticmethod
+    def _one_way_step(dev, j, old, engaged, w, lam, crossed, initial, scale, t):
+        """First step of the mode logic for a one-way clutch (no Backward mode)."""
+        slide = FORWARD if engaged else FREE
+        if old == HELD:
+            return STUCK if abs(w) <= scale else slide
+        if initial:
+            if w < -scale:
+                raise SimulationError(
+                    f"OneWayClutch '{dev.name}' starts with w_rel = {w:.6g} < 0, which a freewheel cannot "
+                    f"have; give start speeds with w(flange_b) >= w(flange_a)")
+            return slide if w > scale else STUCK
+        if old == STUCK:
+            return (FORWARD if engaged else FREE) if crossed else STUCK
+        if crossed or abs(w) <= scale:
+            return STUCK
+        return slide
+
