@@ -4,7 +4,7 @@
 
 Each layer imports only itself and the layers above it in this list; compile/, hybrid/ and
 solvers/ never import a component module (a solver never knows a component class). The core
-modules (errors, ports, signals, mode codes, the component base, results) are shared by all and
+modules (errors, ports, units, signals, mode codes, the component base, results, reports) are shared by all and
 import no layer. ``model.py`` is the user's facade: it reaches the layers below it only inside
 its methods (``Model.compile``, ``Model.simulate``), never when it is imported.
 
@@ -30,7 +30,7 @@ LAYERS = [
     {"solvers"},
     {"analysis", "bench", "study", "cli", "scene", "sweep", "library", "__root__"},
 ]
-CORE = {"errors", "_numbers", "ports", "modes", "signals", "component", "result"}
+CORE = {"errors", "_numbers", "ports", "modes", "units", "signals", "component", "result", "report"}
 NEVER_COMPONENTS = {"compile", "hybrid", "solvers"}
 RANK = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
 

@@ -52,13 +52,10 @@ def test_every_component_class_has_a_real_signature(cls):
 #: components/friction.py is being reorganised in parallel (issue 16 hybrid work): its dimensionless
 #: parameters (mu, peak, f_normalized, LossyGear.ratio) and tables (mu_table, BearingFriction.tau_table)
 #: get their units there; until then they are the only ones without
-FRICTION_MODULE = "regmech.components.friction"
-
-
 @pytest.mark.parametrize("cls", PUBLIC + _library_classes(), ids=lambda c: c.__name__)
 def test_every_parameter_declares_its_unit(cls):
     missing = [n for n, s in cls.param_specs().items()
-               if not s.unit and s.check not in ("choice", "any") and vars_owner(cls, n).__module__ != FRICTION_MODULE]
+               if not s.unit and s.check not in ("choice", "any")]
     assert not missing, f"{cls.__name__}: parameters {missing} declare no unit (unit='1' when dimensionless)"
 
 

@@ -119,12 +119,12 @@ class Clutch(_MuMixin, FrictionDevice):
     MSL, whose own CoupledClutches drives it with a sine down to -1. A value
     above 1 (beyond round-off) is refused: raise ``fn_max`` instead."""
 
-    mu = Param(0.5, check="nonnegative", doc="kinetic friction coefficient (ignored with mu_table)")
-    mu_table = Param(None, check="table", optional=True, doc="(w_rel [rad/s], mu) points for w_rel >= 0")
-    peak = Param(1.0, check="positive", doc="static over kinetic friction at w = 0 (>= 1)")
+    mu = Param(0.5, check="nonnegative", unit="1", doc="kinetic friction coefficient (ignored with mu_table)")
+    mu_table = Param(None, check="table", optional=True, unit="(rad/s, 1)", doc="(w_rel [rad/s], mu) points for w_rel >= 0")
+    peak = Param(1.0, check="positive", unit="1", doc="static over kinetic friction at w = 0 (>= 1)")
     cgeo = Param(1.0, check="nonnegative", unit="m", doc="geometry constant (effective radius x surfaces)")
     fn_max = Param(check="nonnegative", unit="N", doc="maximum normal force")
-    f_normalized = Param(1.0, check="signal", bounds=(None, 1.0),
+    f_normalized = Param(1.0, check="signal", bounds=(None, 1.0), unit="1",
                          doc="normalised normal force, <= 1 (<= 0: disengaged)",
                          bounds_note="; the normal force is fn_max * f_normalized, so 1 is the full force fn_max and "
                                      "values <= 0 disengage the device (mode Free). Raise fn_max for a larger force")
@@ -185,9 +185,9 @@ class FrictionContact(_MuMixin, FrictionDevice):
     """Translational Coulomb contact between ``flange_a`` and ``flange_b`` (a Fixed
     for a contact with the ground): ``f = mu(|v_rel|) * fn(t)``, static ``peak`` times that."""
 
-    mu = Param(0.5, check="nonnegative", doc="kinetic friction coefficient (ignored with mu_table)")
-    mu_table = Param(None, check="table", optional=True, doc="(v_rel [m/s], mu) points for v_rel >= 0")
-    peak = Param(1.0, check="positive", doc="static over kinetic friction")
+    mu = Param(0.5, check="nonnegative", unit="1", doc="kinetic friction coefficient (ignored with mu_table)")
+    mu_table = Param(None, check="table", optional=True, unit="(m/s, 1)", doc="(v_rel [m/s], mu) points for v_rel >= 0")
+    peak = Param(1.0, check="positive", unit="1", doc="static over kinetic friction")
     fn = Param(check="signal", unit="N", doc="normal force (number, signal or callable)")
     flanges = (("flange_a", TRANSLATIONAL), ("flange_b", TRANSLATIONAL))
     default_domain = TRANSLATIONAL
@@ -206,8 +206,8 @@ class BearingFriction(FrictionDevice):
     kinetic torque from ``tau_table`` of (w [rad/s], tau [N m]) for w >= 0,
     break-away torque ``peak * tau_table(0)``."""
 
-    tau_table = Param(check="table", doc="(w >= 0, friction torque) points")
-    peak = Param(1.0, check="positive", doc="break-away over kinetic torque at w = 0")
+    tau_table = Param(check="table", unit="(rad/s, N m)", doc="(w >= 0, friction torque) points")
+    peak = Param(1.0, check="positive", unit="1", doc="break-away over kinetic torque at w = 0")
     flanges = (("flange", ROTATIONAL), ("support", ROTATIONAL, True))
 
     def rows(self):
@@ -247,8 +247,8 @@ class LossyGear(FrictionDevice):
     """
 
     coupled = True
-    ratio = Param(check="nonzero", doc="transmission ratio phi_a/phi_b")
-    loss_table = Param([[0.0, 1.0, 1.0, 0.0, 0.0]], check="any", doc="(|w_a|, eta_mf1, eta_mf2, tau_bf1, tau_bf2) rows")
+    ratio = Param(check="nonzero", unit="1", doc="transmission ratio phi_a/phi_b")
+    loss_table = Param([[0.0, 1.0, 1.0, 0.0, 0.0]], check="any", unit="(rad/s, 1, 1, N m, N m)", doc="(|w_a|, eta_mf1, eta_mf2, tau_bf1, tau_bf2) rows")
     flanges = (("flange_a", ROTATIONAL), ("flange_b", ROTATIONAL), ("support", ROTATIONAL, True))
     rel_names = {ROTATIONAL: (None, None, None, None)}
 
