@@ -11,7 +11,7 @@ and one log-log plot per scene), ``benchmarks/results/hard_cases.md`` (and
 ``results/wp/hard_cases.csv``), and ``BENCHMARKS.md`` at the top of the
 repository, assembled from the sections in ``benchmarks/results/`` that exist
 (``foundation.md``, ``work_precision.md``, ``hard_cases.md``, ``linsolver.md``, ``modal.md``,
-``solvers_ode.md``, ``expm.md``, ``sweep.md``, ``fuzz.md``: the last written by ``benchmarks/fuzz.py``). The "which solver to pick"
+``solvers_ode.md``, ``expm.md``, ``sweep.md``, ``fuzz.md``: written by ``benchmarks/fuzz.py``; ``peers.md``: regmech against hand-written scipy and CasADi, ``benchmarks/bench_peers.py``). The "which solver to pick"
 text of BENCHMARKS.md is kept between its markers when the file is
 re-assembled (it is written by hand from the figures).
 
@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 WP_DIR = RESULTS / "wp"
 SECTIONS = ["fuzz.md", "calibration.md", "foundation.md", "work_precision.md", "hard_cases.md",
-            "solvers_ode.md", "linsolver.md", "expm.md", "rigid_chain.md", "modal.md", "sweep.md"]
+            "solvers_ode.md", "linsolver.md", "expm.md", "rigid_chain.md", "modal.md", "sweep.md", "peers.md"]
 PICK_BEGIN, PICK_END = "<!-- which-solver:begin -->", "<!-- which-solver:end -->"
 
 
