@@ -215,7 +215,7 @@ def call(tool: Tool, case: Case, tg):
             info += f", est. {st.error_estimate:.1e}"
         return dt, on_grid(res, case.signals, tg), info
     out, inf = got
-    info = ", ".join(f"{v} {k}" for k, v in inf.items())
+    info = ", ".join(f"{v} {k}" for k, v in inf.items() if isinstance(v, (int, float)))
     return dt, out, info
 
 

@@ -4,7 +4,8 @@ Each model is the reduced ODE of the regmech scene written out by hand and
 integrated by ``scipy.integrate.solve_ivp`` with ``t_eval`` on the output grid.
 A run returns ``(outputs, info)``: ``outputs`` maps a regmech signal name to
 its values on the grid, ``info`` holds ``nfev`` (right-hand-side calls) and,
-for the hybrid model, ``segments`` (solve_ivp calls) and ``events``.
+for the hybrid model, ``segments`` (solve_ivp calls), ``events`` and
+``switches`` (time and clutch number of each state event).
 
 Models (parameters and signs as in ``regmech.library`` and MSL):
 
@@ -179,6 +180,7 @@ def coupled_clutches(method: str = "DOP853", rtol: float = 1e-6, atol: float | N
     modes = _cc_choose_modes(t0, w, set(), {}, J)
     out_t, out_y = [tg[:1]], [w[:, None].copy()]
     nfev = segments = events = 0
+    switches = []                      # (t, clutch number 1..3) of every state event
     bi = 0
     while t0 < t_end:
         if segments >= max_segments:
@@ -225,6 +227,7 @@ def coupled_clutches(method: str = "DOP853", rtol: float = 1e-6, atol: float | N
             t0, w = float(sol.t_events[hit][0]), sol.y_events[hit][0].copy()
             events += 1
             k, kind = ev_clutch[hit]
+            switches.append((t0, k + 1))
             forced = {}
             if kind == "zero":
                 candidates.add(k)
@@ -242,7 +245,7 @@ def coupled_clutches(method: str = "DOP853", rtol: float = 1e-6, atol: float | N
     if t.size != tg.size:
         raise RuntimeError(f"hand CoupledClutches: {t.size} output points instead of {tg.size}")
     return ({name: y[i] for i, name in enumerate(CC_SIGNALS)},
-            {"nfev": nfev, "segments": segments, "events": events})
+            {"nfev": nfev, "segments": segments, "events": events, "switches": switches})
 
 
 # --------------------------------------------------------------------------- chain
