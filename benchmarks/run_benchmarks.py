@@ -3,6 +3,7 @@
     python benchmarks/run_benchmarks.py --wp        # work-precision of every solver on every scene
     python benchmarks/run_benchmarks.py --hard      # hard cases at full size, every solver
     python benchmarks/run_benchmarks.py --assemble  # BENCHMARKS.md from benchmarks/results/*.md
+    python benchmarks/run_benchmarks.py --peers     # regmech against its peers (bench_peers.py), then --assemble
     python benchmarks/run_benchmarks.py --rewrite   # the work-precision report again from its CSV
     python benchmarks/run_benchmarks.py --all       # the three in turn
 
@@ -222,6 +223,8 @@ def main(argv=None) -> int:
     p.add_argument("--wp", action="store_true", help="work-precision run (full size)")
     p.add_argument("--hard", action="store_true", help="hard cases (full size)")
     p.add_argument("--assemble", action="store_true", help="assemble BENCHMARKS.md")
+    p.add_argument("--peers", action="store_true",
+                   help="regmech against hand-written scipy and CasADi (benchmarks/bench_peers.py), then assemble")
     p.add_argument("--all", action="store_true", help="--wp, --hard and --assemble")
     p.add_argument("--scenes", nargs="+")
     p.add_argument("--cases", nargs="+")
@@ -235,15 +238,19 @@ def main(argv=None) -> int:
                    help="with --wp --scenes or --hard: keep the previous records of the other scenes/cases "
                         "(--hard without --cases: resume, running only the cases not yet recorded)")
     args = p.parse_args(argv)
-    if not (args.wp or args.hard or args.assemble or args.all or args.rewrite):
-        p.error("choose --wp, --hard, --assemble, --rewrite or --all")
+    if not (args.wp or args.hard or args.assemble or args.all or args.rewrite or args.peers):
+        p.error("choose --wp, --hard, --assemble, --rewrite, --peers or --all")
     if args.rewrite:
         rewrite_wp(args)
     if args.wp or args.all:
         run_wp(args)
     if args.hard or args.all:
         run_hard(args)
-    if args.assemble or args.all:
+    if args.peers:
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        import bench_peers
+        bench_peers.main(["--repeats", str(max(args.repeats, 5))])
+    if args.assemble or args.all or args.peers:
         assemble(args)
     return 0
 
