@@ -3,6 +3,7 @@
     python benchmarks/run_benchmarks.py --wp        # work-precision of every solver on every scene
     python benchmarks/run_benchmarks.py --hard      # hard cases at full size, every solver
     python benchmarks/run_benchmarks.py --assemble  # BENCHMARKS.md from benchmarks/results/*.md
+    python benchmarks/run_benchmarks.py --peers     # regmech against its peers (bench_peers.py), then --assemble
     python benchmarks/run_benchmarks.py --rewrite   # the work-precision report again from its CSV
     python benchmarks/run_benchmarks.py --all       # the three in turn
 
@@ -11,7 +12,7 @@ and one log-log plot per scene), ``benchmarks/results/hard_cases.md`` (and
 ``results/wp/hard_cases.csv``), and ``BENCHMARKS.md`` at the top of the
 repository, assembled from the sections in ``benchmarks/results/`` that exist
 (``foundation.md``, ``work_precision.md``, ``hard_cases.md``, ``linsolver.md``, ``modal.md``,
-``solvers_ode.md``, ``expm.md``, ``sweep.md``, ``fuzz.md``: the last written by ``benchmarks/fuzz.py``). The "which solver to pick"
+``solvers_ode.md``, ``expm.md``, ``sweep.md``, ``fuzz.md``: written by ``benchmarks/fuzz.py``; ``peers.md``: regmech against hand-written scipy and CasADi, ``benchmarks/bench_peers.py``). The "which solver to pick"
 text of BENCHMARKS.md is kept between its markers when the file is
 re-assembled (it is written by hand from the figures).
 
@@ -37,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 WP_DIR = RESULTS / "wp"
 SECTIONS = ["fuzz.md", "calibration.md", "foundation.md", "work_precision.md", "hard_cases.md",
-            "solvers_ode.md", "linsolver.md", "expm.md", "rigid_chain.md", "modal.md", "sweep.md"]
+            "solvers_ode.md", "linsolver.md", "expm.md", "rigid_chain.md", "modal.md", "sweep.md", "peers.md"]
 PICK_BEGIN, PICK_END = "<!-- which-solver:begin -->", "<!-- which-solver:end -->"
 
 
@@ -222,6 +223,8 @@ def main(argv=None) -> int:
     p.add_argument("--wp", action="store_true", help="work-precision run (full size)")
     p.add_argument("--hard", action="store_true", help="hard cases (full size)")
     p.add_argument("--assemble", action="store_true", help="assemble BENCHMARKS.md")
+    p.add_argument("--peers", action="store_true",
+                   help="regmech against hand-written scipy and CasADi (benchmarks/bench_peers.py), then assemble")
     p.add_argument("--all", action="store_true", help="--wp, --hard and --assemble")
     p.add_argument("--scenes", nargs="+")
     p.add_argument("--cases", nargs="+")
@@ -235,15 +238,19 @@ def main(argv=None) -> int:
                    help="with --wp --scenes or --hard: keep the previous records of the other scenes/cases "
                         "(--hard without --cases: resume, running only the cases not yet recorded)")
     args = p.parse_args(argv)
-    if not (args.wp or args.hard or args.assemble or args.all or args.rewrite):
-        p.error("choose --wp, --hard, --assemble, --rewrite or --all")
+    if not (args.wp or args.hard or args.assemble or args.all or args.rewrite or args.peers):
+        p.error("choose --wp, --hard, --assemble, --rewrite, --peers or --all")
     if args.rewrite:
         rewrite_wp(args)
     if args.wp or args.all:
         run_wp(args)
     if args.hard or args.all:
         run_hard(args)
-    if args.assemble or args.all:
+    if args.peers:
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        import bench_peers
+        bench_peers.main(["--repeats", str(max(args.repeats, 5))])
+    if args.assemble or args.all or args.peers:
         assemble(args)
     return 0
 

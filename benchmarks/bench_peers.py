@@ -1,0 +1,607 @@
+"""regmech against the code a user would write instead (issue 15): peers side by side.
+
+    python benchmarks/bench_peers.py [--repeats 5] [--cases first cc chain10 ...]
+                                     [--no-bigchain] [--out benchmarks/results/peers.md]
+    python benchmarks/bench_peers.py --rewrite     # the report again from results/peers.json (no runs)
+
+Peers (``benchmarks/peers/``): the same models written by hand on
+``scipy.integrate.solve_ivp`` (MSL First, MSL CoupledClutches with event
+restarts, the benchmark chains of ``bench_foundation.py`` with n = 10, 100,
+1,000 and 10,000 inertias) and on CasADi's CVODES and IDAS (First and the
+chains; skipped with a note when casadi is not installed: ``pip install -e
+".[bench]"``). regmech runs through its public API only (``Model.compile``,
+``Model.simulate``, ``Result``), so the harness outlives changes inside the
+solvers.
+
+Protocol, per case and rtol (1e-6, 1e-9; atol = rtol * 1e-2, regmech's default):
+
+* every tool runs once as a warm-up (not timed into the medians; its time is
+  reported as the first call, on a model compiled but never simulated); a
+  tool whose warm-up takes longer than ``--budget`` seconds is not repeated
+  (its single time is reported and marked);
+* then ``--repeats`` rounds, each running every tool once, in alternating
+  order (forward, backward), in this one process; the median is reported;
+* build and compile (regmech: the builder and ``Model.compile`` on a fresh
+  model; CasADi: the SX expressions and ``casadi.integrator``) are timed
+  apart from the simulation;
+* each answer's error is measured against an accurate reference: the
+  hand-written model by DOP853 at rtol 1e-12, atol 1e-14, cross-checked
+  against an independent regmech run (the difference is reported); error =
+  max over the compared signals and the output instants of |y - y_ref|,
+  divided by the largest range of the compared signals.
+
+regmech's *default call* for a row at rtol r is ``m.simulate(t_end, dt_out,
+accuracy=1e3 r)`` (solver "auto"; at r = 1e-6 that is the plain default call
+with its accuracy 1e-3); its *best solver* is the fastest regmech run (auto,
+ida and scipy:DOP853 at rtol r, expm under ``accuracy=1e3 r`` on the linear
+models) whose error is within the row's error bound 1e3 r. The fastest peer
+is taken among the peers within the same bound. A target is met when the
+time ratio is within it and regmech's error is within the bound.
+
+The chain of 100,000 inertias is run end to end (build, compile, 1 s at
+rtol 1e-6 with ida, every inertia's speed read by name) in a subprocess:
+wall time and peak memory (``ru_maxrss``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import json
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_foundation import chain as regmech_chain          # noqa: E402  the benchmark chain's regmech model
+from peers import casadi_models as cm                         # noqa: E402
+from peers import scipy_models as sm                          # noqa: E402
+
+RTOLS = (1e-6, 1e-9)
+REF_RTOL, REF_ATOL = 1e-12, 1e-14
+BIG_N = 100_000
+#: regmech runs first tried in a subprocess with a wall limit: measured to run for many minutes with
+#: ``timeout_s`` not stopping them (scipy:DOP853's up-front stiffness check, ARPACK, on 10,000 inertias)
+RUN_TIMEOUT = 120.0          # [s] timeout_s of every regmech run
+PROBED = {("chain10000", "regmech scipy:DOP853")}
+
+
+def error_bound(rtol: float) -> float:
+    """The error a row at rtol must stay within (relative to the compared signals' range)."""
+    return 1e3 * rtol
+
+
+# --------------------------------------------------------------------------- cases
+@dataclass
+class Case:
+    key: str
+    title: str
+    t_end: float
+    dt_out: float
+    signals: tuple
+    regmech_builder: object                 # () -> rm.Model
+    hand: dict                              # label -> (rtol, atol) -> (outputs, info)
+    casadi: dict                            # label -> rtol -> CasadiRun
+    linear: bool                            # expm applies
+    cross_check: tuple                      # regmech (solver, options) for the reference cross-check, or None
+    targets: list = field(default_factory=list)
+
+
+def make_cases() -> dict[str, Case]:
+    from regmech.library import coupled_clutches, first
+    cases = {}
+    hand_first = {f"scipy {m}": (lambda r, a, m=m: sm.first(m, r, a)) for m in ("DOP853", "RK45")}
+    cas_first = {f"casadi {s}": (lambda r, s=s: cm.build_first(s, r)) for s in cm.SOLVERS}
+    cases["first"] = Case("first", "MSL First (1 s, output every 1 ms)", 1.0, 1e-3, sm.FIRST_SIGNALS, first,
+                          hand_first, cas_first, True, ("ida", {"rtol": 1e-11, "atol": 1e-13}))
+    hand_cc = {f"scipy {m}": (lambda r, a, m=m: sm.coupled_clutches(m, r, a)) for m in ("DOP853", "RK45")}
+    cases["cc"] = Case("cc", "MSL CoupledClutches (1.5 s, output every 1 ms; stick/slip)", 1.5, 1e-3,
+                       sm.CC_SIGNALS, coupled_clutches, hand_cc, {}, False,
+                       ("scipy:DOP853", {"rtol": 1e-12, "atol": 1e-14}))
+    for n in (10, 100, 1000, 10_000):
+        hand = {f"scipy {m}": (lambda r, a, m=m, n=n: sm.chain(n, m, r, a)) for m in ("DOP853", "RK45")}
+        cas = {f"casadi {s}": (lambda r, s=s, n=n: cm.build_chain(n, s, r)) for s in cm.SOLVERS}
+        cases[f"chain{n}"] = Case(
+            f"chain{n}", f"chain of {n:,} inertias (1 s, output every 10 ms)", 1.0, 1e-2, sm.chain_signals(n),
+            (lambda n=n: regmech_chain(n)), hand, cas, True,
+            ("ida", {"rtol": 1e-11, "atol": 1e-13}) if n <= 1000 else None)
+    return cases
+
+
+def hand_reference(case: Case):
+    """The reference answer: the hand model by DOP853 at rtol 1e-12."""
+    fn = case.hand["scipy DOP853"]
+    t0 = time.perf_counter()
+    out, _ = fn(REF_RTOL, REF_ATOL)
+    return out, time.perf_counter() - t0
+
+
+def on_grid(res, names, tg):
+    """regmech's outputs at the grid instants (an event adds a pair of rows at its instant; speeds are
+    continuous, so interpolation on the grid is exact at the grid points)."""
+    t = np.asarray(res.t)
+    out = {}
+    for k in names:
+        y = np.asarray(res[k], dtype=float)
+        out[k] = y if t.size == tg.size and np.allclose(t, tg, rtol=0, atol=1e-12) else np.interp(tg, t, y)
+    return out
+
+
+def error_of(out, ref, names) -> float:
+    scale = max(float(np.ptp(ref[k])) for k in names)
+    return max(float(np.max(np.abs(np.asarray(out[k]) - ref[k]))) for k in names) / scale
+
+
+# --------------------------------------------------------------------------- tools
+@dataclass
+class Tool:
+    label: str
+    group: str                    # "regmech", "scipy", "casadi"
+    run: object                   # () -> outputs on the grid, info string
+    build: float | None = None    # build time of this tool [s] (CasADi), regmech's is per case
+    first: float | None = None    # warm-up (first call) [s]
+    times: list = field(default_factory=list)
+    cpu: list = field(default_factory=list)      # process CPU time of each timed call [s]
+    error: float | None = None
+    info: str = ""
+    failed: str = ""
+    single: bool = False          # warm-up beyond the budget: not repeated
+
+    def median(self):
+        if self.failed:
+            return None
+        return statistics.median(self.times) if self.times else self.first
+
+    def cpu_median(self):
+        return statistics.median(self.cpu) if self.cpu and not self.failed else None
+
+
+def regmech_tools(case: Case, rtol: float, budget: float) -> list[Tool]:
+    tg = sm.grid(case.t_end, case.dt_out)
+    acc = error_bound(rtol)
+    configs = [("regmech default (auto)", {} if acc == 1e-3 else {"accuracy": acc}),
+               ("regmech ida", {"solver": "ida", "rtol": rtol}),
+               ("regmech scipy:DOP853", {"solver": "scipy:DOP853", "rtol": rtol})]
+    if case.linear:
+        configs.append(("regmech expm", {"solver": "expm", "accuracy": acc}))
+    tools = []
+    for label, kw in configs:
+        m = case.regmech_builder()
+        m.compile()
+
+        def run(m=m, kw=kw):
+            res = m.simulate(case.t_end, case.dt_out, timeout_s=RUN_TIMEOUT, **kw)
+            values = {k: res[k] for k in case.signals}           # the named results, inside the timing
+            return res, values
+        tools.append(Tool(label, "regmech", run))
+    return tools
+
+
+def peer_tools(case: Case, rtol: float, notes: list) -> list[Tool]:
+    tools = []
+    for label, fn in case.hand.items():
+        if label == "scipy RK45" and rtol < 1e-7 and case.key.startswith("chain"):
+            continue                   # RK45 at 1e-9 takes several times DOP853's steps on the chains: not a contender
+        tools.append(Tool(label, "scipy", (lambda fn=fn: fn(rtol, None))))
+    if case.casadi and cm.available():
+        for label, builder in case.casadi.items():
+            crun = builder(rtol)
+            tools.append(Tool(label, "casadi", crun.run, build=crun.build_time))
+    elif case.casadi:
+        notes.append(f"{case.key}: CasADi not installed, its rows are skipped (`pip install -e \".[bench]\"`).")
+    return tools
+
+
+def call(tool: Tool, case: Case, tg):
+    """One timed call; returns (seconds, outputs on the grid, info)."""
+    t0 = time.perf_counter()
+    got = tool.run()
+    dt = time.perf_counter() - t0
+    if tool.group == "regmech":
+        res, _ = got
+        st = res.stats
+        info = f"{st.solver}, {st.rhs_calls} residual/RHS calls, {st.events} events"
+        if st.error_estimate is not None:
+            info += f", est. {st.error_estimate:.1e}"
+        return dt, on_grid(res, case.signals, tg), info
+    out, inf = got
+    info = ", ".join(f"{v} {k}" for k, v in inf.items() if isinstance(v, (int, float)))
+    return dt, out, info
+
+
+def measure_row(case: Case, rtol: float, ref, repeats: int, budget: float, notes: list, log,
+                probe_limit: float = 150.0) -> list[Tool]:
+    tg = sm.grid(case.t_end, case.dt_out)
+    tools = regmech_tools(case, rtol, budget) + peer_tools(case, rtol, notes)
+    for tool in tools:                                   # warm-up: first call, error, info
+        if (case.key, tool.label) in PROBED:
+            tool.failed = probe(case.key, rtol, tool.label, probe_limit)
+            if tool.failed:
+                log(f"  {case.key} rtol {rtol:g} probe {tool.label}: {tool.failed}")
+                continue
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                dt, out, tool.info = call(tool, case, tg)
+            tool.first, tool.error = dt, error_of(out, ref, case.signals)
+            tool.single = dt > budget
+        except Exception as exc:                         # a refusal or a failure is a result to report
+            tool.failed = f"{type(exc).__name__}: {str(exc).splitlines()[0][:160]}"
+        log(f"  {case.key} rtol {rtol:g} warm-up {tool.label}: "
+            + (tool.failed or f"{tool.first * 1e3:.1f} ms, error {tool.error:.1e}"))
+    live = [t for t in tools if not t.failed and not t.single]
+    for r in range(repeats):
+        order = live if r % 2 == 0 else live[::-1]
+        for tool in order:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                t0, c0 = time.perf_counter(), time.process_time()
+                tool.run()
+                tool.times.append(time.perf_counter() - t0)
+                tool.cpu.append(time.process_time() - c0)
+    return tools
+
+
+def probe(key: str, rtol: float, label: str, limit: float) -> str:
+    """Run one regmech call in a subprocess; '' if it answered within ``limit`` [s], else why not."""
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--probe-worker", key, repr(rtol), label],
+                           capture_output=True, text=True, timeout=limit)
+    except subprocess.TimeoutExpired:
+        return (f"no answer within {limit:.0f} s (probed in a subprocess; the run's timeout_s = "
+                f"{RUN_TIMEOUT:.0f} s did not stop it)")
+    if p.returncode != 0:
+        return "probe failed: " + ((p.stderr.strip().splitlines() or ["?"])[-1][:150])
+    return ""
+
+
+def probe_worker(key: str, rtol: float, label: str) -> None:
+    tool = next(t for t in regmech_tools(CASES[key], rtol, 30.0) if t.label == label)
+    tool.run()
+
+
+def build_times(case: Case, repeats: int) -> tuple[float, float]:
+    """Medians of regmech's build (the builder) and compile (``Model.compile``) on fresh models [s]."""
+    b, c = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        m = case.regmech_builder()
+        t1 = time.perf_counter()
+        m.compile()
+        t2 = time.perf_counter()
+        b.append(t1 - t0)
+        c.append(t2 - t1)
+    return statistics.median(b), statistics.median(c)
+
+
+# --------------------------------------------------------------------------- 100,000 chain
+def bigchain_worker(n: int) -> None:
+    """Build, compile, simulate 1 s at rtol 1e-6 (ida) and read every speed by name; print JSON."""
+    import resource
+    t0 = time.perf_counter()
+    m = regmech_chain(n)
+    t1 = time.perf_counter()
+    m.compile()
+    t2 = time.perf_counter()
+    res = m.simulate(1.0, 1e-2, solver="ida", rtol=1e-6)
+    t3 = time.perf_counter()
+    total = 0.0
+    for i in range(n):
+        total += float(res[f"J{i}.w"][-1])
+    t4 = time.perf_counter()
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0      # kB -> MB (Linux)
+    print(json.dumps({"build": t1 - t0, "compile": t2 - t1, "simulate": t3 - t2, "results": t4 - t3,
+                      "inside": t4 - t0, "rss_mb": rss, "finite": math.isfinite(total),
+                      "stats": str(res.stats)}))
+
+
+def run_bigchain(limit: float = 900.0) -> dict:
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--bigchain-worker", str(BIG_N)],
+                           capture_output=True, text=True, timeout=limit)
+    except subprocess.TimeoutExpired:
+        return {"failed": f"did not finish within {limit:.0f} s"}
+    wall = time.perf_counter() - t0
+    if p.returncode != 0:
+        return {"failed": (p.stderr.strip().splitlines() or ["exit code %d" % p.returncode])[-1][:300]}
+    d = json.loads(p.stdout.strip().splitlines()[-1])
+    d["wall"] = wall
+    return d
+
+
+# --------------------------------------------------------------------------- machine
+def _version(dist):
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return "not installed"
+
+
+def machine_facts() -> list[tuple[str, str]]:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in subprocess.run(["lscpu"], capture_output=True, text=True, timeout=10).stdout.splitlines():
+            if line.startswith("Model name:"):
+                cpu = line.split(":", 1)[1].strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    try:
+        load = subprocess.run(["uptime"], capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        load = "load average: %.2f, %.2f, %.2f" % os.getloadavg()
+    env = {k: v for k, v in os.environ.items() if k.startswith(("OPENBLAS", "OMP_", "MKL_"))}
+    return [("CPU", cpu), ("cores (os.cpu_count)", str(os.cpu_count())), ("uptime at start", load),
+            ("Python", sys.version.split()[0]), ("numpy", np.__version__), ("scipy", _version("scipy")),
+            ("scikit-sundae", _version("scikit-sundae")), ("casadi", cm.version()),
+            ("regmech", _version("regmech")),
+            ("OPENBLAS/OMP/MKL environment", ", ".join(f"{k}={v}" for k, v in sorted(env.items())) or "none set")]
+
+
+# --------------------------------------------------------------------------- report
+def fmt_ms(s):
+    return "-" if s is None else (f"{s * 1e3:.1f} ms" if s < 10 else f"{s:.1f} s")
+
+
+def short(failure: str) -> str:
+    """A failure in a table cell: its first clause (the full text is in the table of every run)."""
+    return failure.split(" (")[0][:70]
+
+
+def fmt_err(e):
+    return "-" if e is None else f"{e:.1e}"
+
+
+def fastest(tools, groups, bound, labels=None):
+    """The fastest tool of the groups within the error bound (None if none)."""
+    ok = [t for t in tools if t.group in groups and not t.failed and t.error is not None and t.error <= bound
+          and (labels is None or t.label in labels)]
+    return min(ok, key=lambda t: t.median()) if ok else None
+
+
+def target_rows(case: Case, rtol: float, tools: list[Tool]) -> list[list[str]]:
+    """Rows of the targets table for one case and rtol (issue 15's targets)."""
+    bound = error_bound(rtol)
+    default = next(t for t in tools if t.label == "regmech default (auto)")
+    best = fastest(tools, ("regmech",), bound)
+    rows = []
+
+    def row(who: Tool | None, peer: Tool | None, peer_kind: str, target: float | None, extra=""):
+        if who is None or who.failed:
+            rows.append([case.key, f"{rtol:g}", who.label if who else "regmech (none within the bound)",
+                         short(who.failed) if who else "-", "-", peer.label if peer else "-", "-", "-", "-",
+                         f"<= {target:g}x" if target else "-", "not met" if target else "-"])
+            return
+        if peer is None:
+            rows.append([case.key, f"{rtol:g}", who.label, fmt_ms(who.median()), fmt_err(who.error),
+                         f"no {peer_kind} within {bound:g}", "-", "-", "-", f"<= {target:g}x" if target else "-", "-"])
+            return
+        ratio = who.median() / peer.median()
+        cpu = (f"{who.cpu_median() / peer.cpu_median():.2f}x" if who.cpu_median() and peer.cpu_median() else "-")
+        met = "-"
+        if target:
+            met = "met" if (ratio <= target and who.error <= bound) else "**not met**"
+        rows.append([case.key, f"{rtol:g}", who.label + extra, fmt_ms(who.median()), fmt_err(who.error),
+                     peer.label, f"{fmt_ms(peer.median())} ({fmt_err(peer.error)})", f"{ratio:.2f}x", cpu,
+                     f"<= {target:g}x" if target else "-", met])
+
+    hand = fastest(tools, ("scipy",), bound)
+    cas = fastest(tools, ("casadi",), bound)
+    small = case.key in ("first", "chain10", "chain100")
+    if case.key == "cc":
+        tgt = 0.7 if rtol < 1e-7 else 1.0
+        row(default, hand, "hand-written scipy", tgt)
+        row(best, hand, "hand-written scipy", tgt, " (best)")
+    elif small:
+        row(default, hand, "hand-written scipy", 1.0)
+        row(best, hand, "hand-written scipy", 1.0, " (best)")
+        row(default, cas, "CasADi", 2.0)
+        row(best, cas, "CasADi", 2.0, " (best)")
+    else:
+        row(default, hand, "hand-written scipy", None)
+        row(best, hand, "hand-written scipy", 1.0, " (best)")
+        if cas is not None:
+            row(best, cas, "CasADi", None, " (best)")
+    ode = next((t for t in tools if t.label == "regmech scipy:DOP853"), None)
+    hand_dop = next((t for t in tools if t.label == "scipy DOP853"), None)
+    if ode is not None and hand_dop is not None and not hand_dop.failed:
+        tgt = 1.3 if case.key in ("chain1000", "chain10000") else None
+        if ode.failed:
+            rows.append([case.key, f"{rtol:g}", "regmech scipy:DOP853 (ODE-form path)", short(ode.failed), "-",
+                         "scipy DOP853 by hand", fmt_ms(hand_dop.median()), "-", "-", f"<= {tgt:g}x" if tgt else "-",
+                         "not met" if tgt else "-"])
+        else:
+            ratio = ode.median() / hand_dop.median()
+            cpu = (f"{ode.cpu_median() / hand_dop.cpu_median():.2f}x" if ode.cpu_median() and hand_dop.cpu_median()
+                   else "-")
+            rows.append([case.key, f"{rtol:g}", "regmech scipy:DOP853 (ODE-form path)", fmt_ms(ode.median()),
+                         fmt_err(ode.error), "scipy DOP853 by hand",
+                         f"{fmt_ms(hand_dop.median())} ({fmt_err(hand_dop.error)})", f"{ratio:.2f}x", cpu,
+                         f"<= {tgt:g}x" if tgt else "-",
+                         ("met" if ratio <= tgt else "**not met**") if tgt else "-"])
+    return rows
+
+
+def table(header, rows) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return out
+
+
+TOOL_FIELDS = ("label", "group", "build", "first", "times", "cpu", "error", "info", "failed", "single")
+
+
+def save_raw(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command):
+    """Every measurement as JSON beside the report, so that ``--rewrite`` can lay it out again without runs."""
+    raw = {"facts": facts, "builds": builds, "refs": refs, "big": big, "notes": notes, "repeats": repeats,
+           "budget": budget, "wall": wall, "load_end": load_end, "command": command,
+           "results": [{"case": k, "rtol": r, "tools": [{f: getattr(t, f) for f in TOOL_FIELDS} for t in tools]}
+                       for (k, r), tools in results.items()]}
+    path.write_text(json.dumps(raw, indent=1))
+
+
+def load_raw(path: Path) -> dict:
+    raw = json.loads(path.read_text())
+    raw["facts"] = [tuple(x) for x in raw["facts"]]
+    raw["builds"] = {k: tuple(v) for k, v in raw["builds"].items()}
+    raw["results"] = {(e["case"], e["rtol"]): [Tool(run=None, **t) for t in e["tools"]] for e in raw["results"]}
+    return raw
+
+
+def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command):
+    L = ["## Peers: regmech against hand-written scipy and CasADi (issue 15)", "",
+         f"Produced by `{command}` in {wall / 60:.1f} min. Each case and rtol: every tool once as a warm-up, then "
+         f"{repeats} rounds in alternating order in one process; times are medians (a tool whose warm-up took over "
+         f"{budget:g} s ran once, marked *single*); the ratio is of wall times, the process CPU times' ratio is "
+         "beside it (less moved by the other work on the machine). atol = rtol * 1e-2 everywhere. Error: max over the compared "
+         "signals and output instants of |y - y_ref| over the largest range of the compared signals, against "
+         "the hand model by DOP853 at rtol 1e-12 (cross-checked against regmech, below). regmech's default call "
+         "at rtol r is `m.simulate(t_end, dt_out, accuracy=1e3 r)` (solver auto; at 1e-6 the plain default "
+         "call); its best is the fastest regmech run within the row's error bound 1e3 r; the fastest peer is "
+         "taken among the peers within that bound. A target is met when the ratio is within it and regmech's "
+         "error is within the bound.", "",
+         "Machine and versions:", ""]
+    L += [f"- {k}: {v}" for k, v in facts] + [f"- uptime at end: {load_end}", ""]
+    L += ["The machine is shared with other agents' work (see the load): absolute times are noisy, the ratios "
+          "(measured side by side, interleaved) are what to read.", ""]
+    L += ["### Targets", ""]
+    rows = []
+    for (key, rtol), tools in results.items():
+        rows += target_rows(CASES[key], rtol, tools)
+    judged = [r for r in rows if r[-1] != "-"]
+    met = sum(r[-1] == "met" for r in judged)
+    L += [f"{met} of {len(judged)} judged rows meet their target (rows without a target are for reading). The "
+          "ODE-form rows (regmech's `scipy:DOP853` against the same method by hand) also bound what regmech's "
+          "up-front checks cost: the target that no check may cost over 5 % of its run is not measured apart.", ""]
+    L += table(["case", "rtol", "regmech", "time", "error", "peer", "peer time (error)", "ratio",
+                "ratio of CPU times", "target", "target met"], rows)
+    L += [""]
+    if big is not None:
+        L += ["### Chain of 100,000 inertias end to end", ""]
+        L += ["The chain of `bench_foundation.py` with 100,000 inertias in a fresh Python process: build, compile, "
+              "simulate 1 s at rtol 1e-6 with ida (output every 10 ms), then every inertia's speed read by name "
+              "(`res[\"J<i>.w\"]`). Measured by this script: no separate 100,000-chain script was on main when "
+              "it was written.", ""]
+        if "failed" in big:
+            L += [f"Failed: {big['failed']}", ""]
+        else:
+            ok_t, ok_m = big["wall"] <= 30.0, big["rss_mb"] <= 2048.0
+            L += table(["step", "time"], [["process wall time (python start to exit)", f"{big['wall']:.1f} s"],
+                                          ["build (builder)", f"{big['build']:.1f} s"],
+                                          ["compile", f"{big['compile']:.1f} s"],
+                                          ["simulate 1 s, ida rtol 1e-6", f"{big['simulate']:.1f} s"],
+                                          ["read every speed by name", f"{big['results']:.1f} s"],
+                                          ["peak memory (ru_maxrss)", f"{big['rss_mb'] / 1024:.2f} GB"]])
+            L += ["", f"Target <= 30 s end to end: {'met' if ok_t else '**not met**'}; <= 2 GB: "
+                      f"{'met' if ok_m else '**not met**'}; compile <= 15 s: "
+                      f"{'met' if big['compile'] <= 15 else '**not met**'}. Solver: {big['stats']}", ""]
+    L += ["### Build and compile", "",
+          "regmech: the builder and `Model.compile` on a fresh model (medians); CasADi: SX expressions and "
+          "`casadi.integrator` (one build per rtol, median of the two).", ""]
+    brows = []
+    for key, (b, c) in builds.items():
+        cas = [t.build for (k, _), tools in results.items() if k == key for t in tools
+               if t.group == "casadi" and t.build is not None]
+        brows.append([key, fmt_ms(b), fmt_ms(c), fmt_ms(statistics.median(cas)) if cas else "-"])
+    L += table(["case", "regmech build", "regmech compile", "CasADi build"], brows) + [""]
+    L += ["### Every run", "",
+          "first call: the warm-up (regmech: a compiled model's first simulate); median: of the rounds.", ""]
+    rows = []
+    for (key, rtol), tools in results.items():
+        for t in tools:
+            rows.append([key, f"{rtol:g}", t.label, t.failed[:90] if t.failed else fmt_ms(t.median())
+                         + (" *single*" if t.single else ""), fmt_ms(t.cpu_median()), fmt_ms(t.first),
+                         fmt_err(t.error), t.info])
+    L += table(["case", "rtol", "tool", "median", "CPU (median)", "first call", "error", "what ran"], rows) + [""]
+    L += ["### References", ""]
+    rrows = [[k, fmt_ms(v["time"]), v["check"]] for k, v in refs.items()]
+    L += table(["case", "reference time (DOP853 1e-12 by hand)", "cross-check"], rrows) + [""]
+    if notes:
+        L += ["Notes:", ""] + [f"- {n}" for n in dict.fromkeys(notes)] + [""]
+    path.write_text("\n".join(L))
+
+
+CASES = make_cases() if "--bigchain-worker" not in sys.argv else {}
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--cases", nargs="*", default=None, help=f"of {list(CASES)}")
+    ap.add_argument("--rtols", nargs="*", type=float, default=list(RTOLS))
+    ap.add_argument("--budget", type=float, default=30.0, help="a warm-up longer than this [s] is not repeated")
+    ap.add_argument("--no-bigchain", action="store_true", help="skip the 100,000-inertia chain")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "peers.md"))
+    ap.add_argument("--rewrite", action="store_true",
+                    help="lay the report out again from the stored measurements (<out>.json), no runs")
+    ap.add_argument("--probe-limit", type=float, default=150.0,
+                    help="wall limit [s] of the subprocess probe of runs known to overrun (PROBED)")
+    ap.add_argument("--bigchain-worker", type=int, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--probe-worker", nargs=3, default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.bigchain_worker:
+        bigchain_worker(args.bigchain_worker)
+        return
+    if args.probe_worker:
+        probe_worker(args.probe_worker[0], float(args.probe_worker[1]), args.probe_worker[2])
+        return
+    out = Path(args.out)
+    raw_path = out.with_suffix(".json")
+    if args.rewrite:
+        write_report(out, **load_raw(raw_path))
+        print(f"rewrote {out} from {raw_path}", file=sys.stderr)
+        return
+    t_start = time.perf_counter()
+    command = "python benchmarks/bench_peers.py" + "".join(
+        f" {a}" for a in (argv if argv is not None else sys.argv[1:]))
+    log = lambda m: print(m, file=sys.stderr, flush=True)          # noqa: E731
+    facts = machine_facts()
+    keys = args.cases or list(CASES)
+    results, builds, refs, notes = {}, {}, {}, []
+    if not cm.available():
+        notes.append("casadi is not installed: the CasADi rows are skipped (`pip install -e \".[bench]\"`).")
+    for key in keys:
+        case = CASES[key]
+        log(f"{key}: reference")
+        ref, ref_time = hand_reference(case)
+        check = "-"
+        if case.cross_check:
+            solver, opts = case.cross_check
+            m = case.regmech_builder()
+            res = m.simulate(case.t_end, case.dt_out, solver=solver, **opts)
+            diff = error_of(on_grid(res, case.signals, sm.grid(case.t_end, case.dt_out)), ref, case.signals)
+            check = f"regmech {solver} at rtol {opts['rtol']:g}: differs by {diff:.1e}"
+        else:
+            check = "none (too large for a tight independent run here)"
+        refs[key] = {"time": ref_time, "check": check}
+        builds[key] = build_times(case, 3 if key == "chain10000" else args.repeats)
+        for rtol in args.rtols:
+            results[(key, rtol)] = measure_row(case, rtol, ref, args.repeats, args.budget, notes, log,
+                                               args.probe_limit)
+    big = None
+    if not args.no_bigchain:
+        log(f"chain of {BIG_N:,}: end to end in a subprocess")
+        big = run_bigchain()
+    load_end = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    raw = dict(facts=facts, results=results, builds=builds, refs=refs, big=big, notes=notes, repeats=args.repeats,
+               budget=args.budget, wall=time.perf_counter() - t_start, load_end=load_end, command=command)
+    save_raw(raw_path, **raw)
+    write_report(out, **raw)
+    log(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
