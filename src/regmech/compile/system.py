@@ -80,7 +80,7 @@ class CompiledSystem:
 
     # -------------------------------------------------------------- pickling
     #: caches that hold SuperLU factorisations (not picklable) or plans derived from them; rebuilt on use
-    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan")
+    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form")
 
     def __getstate__(self):
         """Everything but the factorisation caches (``KernelGroup`` leaves out its lambdified template)."""
@@ -326,7 +326,9 @@ class CompiledSystem:
 
     def accelerations(self, t, x, v, z, modes):
         """Solve the motion and acceleration-level equations for (a, lam, dz)."""
-        e, de, tau, dz, _ = self.kernel_outputs(x, v, z, t)
+        plan = self._plan       # the device outputs only (``kernel_outputs`` adds e, e' and Jacobian weights)
+        out = plan.device_outputs(x, v, z, t, t >= self._t_right, self._sx, self._sv, self._sz)
+        tau, dz = out[:plan.n_c], out[plan.n_c:]
         gp, gv = self._refs(t)
         parts = [-(self.ScT @ tau), gp[2], gv[1]]
         relations = ()
@@ -525,6 +527,17 @@ class CompiledSystem:
         return lu.solve(rhs)
 
     def ode_rhs(self, t, u, modes):
+        """``u' = g(t, u)``; a linear model without constraints takes ``compile.odeform``'s ``A u + b(t)``."""
+        form = self.__dict__.get("_ode_form")
+        if form is None:
+            from .odeform import ode_form
+            form = ode_form(self)
+        if form.linear:
+            return form.rhs(t, u)
+        return self.ode_rhs_general(t, u, modes)
+
+    def ode_rhs_general(self, t, u, modes):
+        """``u' = g(t, u)`` through the lift, the device forces and the KKT solve (any model)."""
         x, v, z = self.ode_lift(t, u, modes)
         a, lam, dz = self.accelerations(t, x, v, z, modes)
         if self.mf:
