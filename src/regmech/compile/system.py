@@ -152,6 +152,13 @@ class CompiledSystem:
 
     def _refs(self, t):
         """g_p, g_p', g_p'' (mp) and g_v, g_v' (mv) at t."""
+        if not self._pos_sig and not self._spd_sig:        # no motion source: the references are all zero
+            zeros = self.__dict__.get("_zero_refs")
+            if zeros is None:
+                zeros = self._zero_refs = (np.zeros((3, self.mp)), np.zeros((2, self.mv)))
+                for z in zeros:
+                    z.flags.writeable = False
+            return zeros
         left = t >= self._t_right
         gp = np.zeros((3, self.mp))
         for j, s in self._pos_sig:

@@ -35,12 +35,23 @@ MAX_TIME_EVENTS = 100_000
 
 
 def _signals(model):
-    """(component, parameter name, signal) of every signal parameter of the model."""
+    """(component, parameter name, signal) of every signal parameter of the model.
+
+    A scan of every parameter of every component (20 ms at 10,000 inertias,
+    and a run asks up to three times); the list is kept with the model's
+    compiled system, which any change of a parameter or a connection drops
+    (``Model._invalidate``), so it is never stale.
+    """
+    compiled = getattr(model, "_compiled", None)
+    cached = getattr(model, "_signal_list", None)
+    if compiled is not None and cached is not None and cached[0] is compiled:
+        return cached[1]
     from ..signals import Signal
-    for comp in model.components.values():
-        for pname, val in comp._values.items():
-            if isinstance(val, Signal):
-                yield comp, pname, val
+    found = [(comp, pname, val) for comp in model.components.values() for pname, val in comp._values.items()
+             if isinstance(val, Signal)]
+    if compiled is not None:
+        model._signal_list = (compiled, found)
+    return found
 
 
 def check_max_time_events(value) -> int:
@@ -124,12 +135,9 @@ def _check_reference(comp, pname, sig, kind, t_start, t_end) -> None:
 def signal_breakpoints(model, t_start, t_end):
     """Instants in (t_start, t_end) where some signal of the model is not smooth (their number is
     bounded before a run by ``check_signals``)."""
-    from ..signals import Signal
     pts = set()
-    for comp in model.components.values():
-        for val in comp._values.values():
-            if isinstance(val, Signal):
-                pts.update(b for b in val.breakpoints(t_start, t_end) if t_start < b < t_end)
+    for _, _, val in _signals(model):
+        pts.update(b for b in val.breakpoints(t_start, t_end) if t_start < b < t_end)
     return sorted(pts)
 
 

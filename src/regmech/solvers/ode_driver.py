@@ -336,6 +336,7 @@ class Stepper:
     t_old: float
     u: np.ndarray
     fixed_step: float | None = None     # the requested step of a fixed-step method
+    slope_at_end = False                # ``g`` holds g(t, u) at the step end (reused for the output row)
     nsteps: int = 0
     nrejected: int = 0
     njev: int = 0
@@ -400,23 +401,36 @@ class _Sink:
         if self.rec is not None:
             self.rec.add(t, y, yp, modes, left=left)
 
-    def state(self, t, u, modes, exact, left=False, row=None):
+    def state(self, t, u, modes, exact, left=False, row=None, g=None):
         """A row from the ODE state; ``exact``: u is a step's end value, not interpolated;
-        ``row``: its ``consistent_row`` when already computed (``EventWatch.dips``)."""
+        ``row``: its ``consistent_row`` when already computed (``EventWatch.dips``); ``g``: ``g(t, u)``
+        when the stepper has it (a fixed-step method's slope at its step end)."""
         if exact and self.probe is not None:
             self.probe.add(t, u)
         if self.rec is not None:
-            self.rec.add(t, *(row or consistent_row(self.c, t, u, modes)), modes, left=left)
+            self.rec.add(t, *(row or consistent_row(self.c, t, u, modes, g)), modes, left=left)
 
 
-def consistent_row(c, t, u, modes):
+def consistent_row(c, t, u, modes, g=None):
     """Full ``(y, y')`` for the output from the ODE state.
 
     The same layout as ``CompiledSystem.assemble_y``, without its forward
     difference for the rates of the algebraic unknowns (only IDA's
     predictor uses those; the named outputs never do), which halves the
-    cost of recording.
+    cost of recording. For the linear form of ``compile.odeform`` (no
+    constraints: u is the whole state) ``y'`` is ``g(t, u)`` itself, taken
+    from ``g`` when the caller has it.
     """
+    form = c.__dict__.get("_ode_form")
+    if form is not None and form.linear:
+        n = c.n
+        if g is None:
+            g = form.rhs(t, u)
+        y = np.zeros(c.N)
+        yp = np.zeros(c.N)
+        y[c._sx], y[c._sv], y[c._sz] = u[:n], u[n:2 * n], u[2 * n:]
+        yp[c._sx], yp[c._sv], yp[c._sz] = u[n:2 * n], g[n:2 * n], g[2 * n:]
+        return y, yp
     x, v, z = c.ode_lift(t, u, modes)
     a, lam, dz = c.accelerations(t, x, v, z, modes)
     y = np.zeros(c.N)
@@ -880,7 +894,8 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
                     break                   # past the event, or recorded as the event's "before" row
                 if exact or out.rec is not None:        # a companion run keeps exact step ends only
                     uq = stepper.u if exact else states.get(tq)
-                    out.state(tq, stepper.interpolate(tq) if uq is None else uq, modes, exact, row=rows.get(tq))
+                    out.state(tq, stepper.interpolate(tq) if uq is None else uq, modes, exact, row=rows.get(tq),
+                              g=stepper.g if exact and stepper.slope_at_end else None)
                 k_next += 1
             if t_hit is not None:
                 return SegmentEnd(t_hit, u_hit, k_hit)
