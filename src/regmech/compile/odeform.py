@@ -59,14 +59,18 @@ def fast_operator(M):
         return M
     row_of = np.repeat(np.arange(rows), np.diff(M.indptr))
     offsets = M.indices - row_of
-    order = list(dict.fromkeys(offsets.tolist()))          # the diagonals in order of first appearance
-    if len(order) * min(rows, cols) > 2 * M.nnz:
+    diagonals = np.unique(offsets)
+    if len(diagonals) * min(rows, cols) > 2 * M.nnz:
         return M
-    rank = {o: k for k, o in enumerate(order)}
-    ranks = np.array([rank[o] for o in offsets.tolist()])
     same_row = row_of[1:] == row_of[:-1]
-    if np.any(ranks[1:][same_row] <= ranks[:-1][same_row]):
-        return M                                           # some row adds its terms in another order
+    for order in (diagonals, np.array(list(dict.fromkeys(offsets.tolist())))):   # ascending (sorted rows), met
+        by_value = np.argsort(order)                        # order[by_value] ascending
+        rank = by_value[np.searchsorted(order[by_value], offsets)]    # each entry's diagonal's place in order
+        if not np.any(rank[1:][same_row] <= rank[:-1][same_row]):
+            break
+    else:
+        return M                                           # no single order serves every row
+    ranks = rank
     data = np.zeros((len(order), cols))
     data[ranks, M.indices] = M.data                        # DIA stores entry (i, i + o) at data[k, i + o]
     return sp.dia_matrix((data, np.array(order)), shape=M.shape)
