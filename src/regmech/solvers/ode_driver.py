@@ -125,14 +125,12 @@ def _device_patterns(c):
     nr = c.Sc.shape[0]
     rr, rz, zr, zz = ([], []), ([], []), ([], []), ([], [])
     for g in c.groups:
-        for inst in range(g.n):
-            r = g.row_index[inst]
-            s = g.state_index[inst] if g.state_index.size else np.zeros(0, int)
-            for (acc, a, b) in ((rr, r, r), (rz, r, s), (zr, s, r), (zz, s, s)):
-                if len(a) and len(b):
-                    aa, bb = np.meshgrid(a, b, indexing="ij")
-                    acc[0].append(aa.ravel())
-                    acc[1].append(bb.ravel())
+        R = np.asarray(g.row_index, int).reshape(g.n, -1)              # rows of each instance
+        Z = np.asarray(g.state_index, int).reshape(g.n, -1)            # states of each instance
+        for (acc, a, b) in ((rr, R, R), (rz, R, Z), (zr, Z, R), (zz, Z, Z)):
+            if a.shape[1] and b.shape[1]:       # every pair (a_i, b_j) of one instance, all instances at once
+                acc[0].append(np.repeat(a, b.shape[1], axis=1).ravel())
+                acc[1].append(np.tile(b, (1, a.shape[1])).ravel())
 
     def mat(acc, shape):
         if not acc[0]:
@@ -181,8 +179,19 @@ def ode_jacobian_pattern(c) -> sp.csc_matrix:
 
 
 def column_groups(pattern: sp.csc_matrix) -> list[np.ndarray]:
-    """Greedy grouping of columns with disjoint row sets (one FD evaluation per group)."""
+    """Greedy grouping of columns with disjoint row sets (one FD evaluation per group): each column, in
+    order, joins the first group none of whose rows it touches. scipy's compiled ``group_sparse`` (the
+    one ``solve_ivp`` uses) does exactly this (the same groups on every library scene and hard case) in
+    microseconds where the loop below took 0.1 s at 1,000 inertias and 0.9 s at 10,000."""
     nrow, ncol = pattern.shape
+    try:
+        from scipy.optimize._group_columns import group_sparse
+        label = group_sparse(nrow, ncol, pattern.indices.astype(np.int32), pattern.indptr.astype(np.int32))
+        order = np.argsort(label, kind="stable")
+        cuts = np.cumsum(np.bincount(label))[:-1]
+        return [np.asarray(g, int) for g in np.split(order, cuts)]
+    except ImportError:         # a private module of scipy: keep the plain loop when it moves
+        pass
     used: list[np.ndarray] = []
     members: list[list[int]] = []
     for j in range(ncol):
@@ -216,13 +225,14 @@ def grouped_fd_jacobian(fun, t, u, g0, pattern: sp.csc_matrix) -> sp.csc_matrix:
     delta = math.sqrt(EPS) * np.maximum(1.0, np.abs(u))
     data = np.zeros(pattern.nnz)
     indptr, indices = pattern.indptr, pattern.indices
+    col_of = np.repeat(np.arange(pattern.shape[1]), np.diff(indptr))       # column of every stored entry
     for cols in groups:
         du = np.zeros_like(u)
         du[cols] = delta[cols]
         dg = fun(t, u + du) - g0
-        for j in cols:
-            lo, hi = indptr[j], indptr[j + 1]
-            data[lo:hi] = dg[indices[lo:hi]] / delta[j]
+        entries = np.concatenate([np.arange(indptr[j], indptr[j + 1]) for j in cols]) if len(cols) < 8 else \
+            np.nonzero(np.isin(col_of, cols))[0]
+        data[entries] = dg[indices[entries]] / delta[col_of[entries]]
     return sp.csc_matrix((data, indices, indptr), shape=pattern.shape)
 
 
