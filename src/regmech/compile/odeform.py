@@ -76,6 +76,41 @@ def fast_operator(M):
     return sp.dia_matrix((data, np.array(order)), shape=M.shape)
 
 
+try:        # scipy's compiled kernels behind ``M @ x``, called without its checks (5 us a product)
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec, dia_matvec as _dia_matvec
+except ImportError:     # a private module of scipy: fall back on the operator when it moves
+    _csr_matvec = _dia_matvec = None
+
+
+class MatVec:
+    """``x -> M @ x`` for a dense, DIA or CSR ``M`` (``fast_operator``), the same numbers as ``M @ x``."""
+
+    def __init__(self, M):
+        self.M = M
+        self.rows, self.cols = M.shape
+        self.kind = "op"
+        if sp.issparse(M) and _csr_matvec is not None:
+            if M.format == "dia" and M.data.dtype == np.float64:
+                self.kind, self.offsets, self.data = "dia", np.ascontiguousarray(M.offsets), \
+                    np.ascontiguousarray(M.data)
+            elif M.format == "csr" and M.data.dtype == np.float64:
+                self.kind = "csr"
+
+    def __call__(self, x):
+        if self.kind != "op":
+            x = np.ascontiguousarray(x, dtype=np.float64)     # the kernels read raw memory
+        if self.kind == "dia":
+            y = np.zeros(self.rows)
+            _dia_matvec(self.rows, self.cols, len(self.offsets), self.data.shape[1], self.offsets, self.data, x, y)
+            return y
+        if self.kind == "csr":
+            M = self.M
+            y = np.zeros(self.rows)
+            _csr_matvec(self.rows, self.cols, M.indptr, M.indices, M.data, x, y)
+            return y
+        return self.M @ x
+
+
 class OdeForm:
     """``g(t, u)`` of one compiled system (see the module docstring); ``linear`` when the fast form applies."""
 
@@ -89,9 +124,22 @@ class OdeForm:
             n = c.n
             self.n, self.n_c, self.plan = n, plan.n_c, plan
             self.size = 2 * n + c.nz
-            self.T = fast_operator(plan.T)             # on y = [x0, v0, x1, v1, ..., z], as the general path
+            self.T = plan.T                            # on y = [x0, v0, x1, v1, ..., z], as the general path
+            self.on_u = False
+            if sp.issparse(plan.T):
+                # the same rows with the columns of u = [x, v, z] and every row's terms kept in their order
+                # (then the product adds exactly what plan.T @ y adds, without filling y first)
+                T = sp.csr_matrix(plan.T)
+                where = np.empty(c.N, np.int64)
+                where[c.ix], where[c.iv], where[c.iz] = np.arange(n), n + np.arange(n), 2 * n + np.arange(c.nz)
+                Tu = sp.csr_matrix((T.data, where[T.indices], T.indptr), shape=(T.shape[0], self.size))
+                Tu.has_sorted_indices = False
+                self.T = fast_operator(Tu)
+                self.on_u = True
+            self.T_mv = MatVec(self.T)
             self.t0 = plan.t0
             self.ScT = fast_operator(c.ScT) if self.n_c else None
+            self.ScT_mv = MatVec(self.ScT) if self.n_c else None
             self.mass = c.mass
             self.V = plan.V
             self.v_rows = self.v_cols = None
@@ -110,11 +158,14 @@ class OdeForm:
     def rhs(self, t, u):
         """``[v; -M^-1 S^T tau; dz]`` (linear form only; see the module docstring)."""
         c, n, n_c = self.c, self.n, self.n_c
-        yb = self.plan.ybuf
-        yb[c._sx] = u[:n]
-        yb[c._sv] = u[n:2 * n]
-        yb[c._sz] = u[2 * n:]
-        out = self.T @ yb
+        if self.on_u:
+            out = self.T_mv(u)
+        else:
+            yb = self.plan.ybuf
+            yb[c._sx] = u[:n]
+            yb[c._sv] = u[n:2 * n]
+            yb[c._sz] = u[2 * n:]
+            out = self.T_mv(yb)
         out += self.t0
         if self.V is not None:
             left = t >= c._t_right
@@ -128,7 +179,7 @@ class OdeForm:
         g = np.empty(self.size)
         g[:n] = u[n:2 * n]
         if n_c:
-            f = self.ScT @ out[:n_c]
+            f = self.ScT_mv(out[:n_c])
             np.negative(f, out=f)
             np.divide(f, self.mass, out=g[n:2 * n])
         else:
