@@ -142,28 +142,73 @@ def signal_breakpoints(model, t_start, t_end):
 
 
 class Recorder:
-    """Collects output rows (t, y, yp, left flag, modes)."""
+    """Collects output rows (t, y, yp, left flag, modes).
 
-    def __init__(self, modes_width: int):
-        self.t, self.y, self.yp, self.left, self.modes = [], [], [], [], []
+    The rows go straight into preallocated arrays (``capacity``: the rows
+    expected, e.g. the output grid and the breakpoints; grown by half when
+    events add more), so ``arrays`` returns views instead of stacking a list
+    of rows at the end: on a 10,000-inertia chain the stacking and the
+    per-row copies cost a tenth of a DOP853 run. ``row_buffers`` hands out
+    the next row to be filled in place (``commit`` then records it).
+    """
+
+    def __init__(self, modes_width: int, capacity: int = 64):
         self.mw = modes_width
+        self.k = 0
+        self.capacity = max(int(capacity), 4)
+        self.T = np.empty(self.capacity)
+        self.L = np.zeros(self.capacity, bool)
+        self.MO = np.zeros((self.capacity, modes_width), int)
+        self.Y = self.YP = None
+
+    @property
+    def t(self):
+        return self.T[:self.k]
+
+    def _reserve(self, width):
+        if self.Y is None:
+            self.Y = np.empty((self.capacity, width))
+            self.YP = np.empty((self.capacity, width))
+        if self.k == self.capacity:
+            grown = self.capacity + max(self.capacity // 2, 16)
+            self.T = np.resize(self.T, grown)
+            self.L = np.resize(self.L, grown)
+            self.MO = np.resize(self.MO, (grown, self.mw))
+            Y, YP = np.empty((grown, self.Y.shape[1])), np.empty((grown, self.Y.shape[1]))
+            Y[:self.k], YP[:self.k] = self.Y[:self.k], self.YP[:self.k]
+            self.Y, self.YP, self.capacity = Y, YP, grown
 
     def add(self, t, y, yp, modes, left=False):
-        self.t.append(float(t))
-        self.y.append(np.array(y, float))
-        self.yp.append(np.array(yp, float))
-        self.left.append(bool(left))
-        self.modes.append(np.array(modes, int).copy())
+        self._reserve(len(y))
+        self.Y[self.k] = y
+        self.YP[self.k] = yp
+        self.commit(t, modes, left)
+
+    def row_buffers(self, width):
+        """``(y, y')`` of the next row, zeroed, to fill in place before ``commit``."""
+        self._reserve(width)
+        y, yp = self.Y[self.k], self.YP[self.k]
+        y[:] = 0.0
+        yp[:] = 0.0
+        return y, yp
+
+    def commit(self, t, modes, left=False):
+        k = self.k
+        self.T[k] = float(t)
+        self.L[k] = bool(left)
+        if self.mw:
+            self.MO[k] = modes
+        self.k = k + 1
 
     def arrays(self):
-        Y = np.array(self.y)
-        YP = np.array(self.yp)
+        k = self.k
+        Y, YP = (self.Y[:k], self.YP[:k]) if self.Y is not None else (np.zeros((k, 0)), np.zeros((k, 0)))
         if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(YP))):
-            k = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | ~np.all(np.isfinite(YP), axis=1))[0][0])
-            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.t[k]:.6g}; the model or the "
-                                  f"solver settings are unstable there (try a tighter tolerance or a stable solver)")
-        modes = np.array(self.modes).reshape(len(self.t), self.mw)
-        return np.array(self.t), Y, YP, np.array(self.left), modes
+            bad = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | ~np.all(np.isfinite(YP), axis=1))[0][0])
+            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.T[bad]:.6g}; the model or "
+                                  f"the solver settings are unstable there (try a tighter tolerance or a stable "
+                                  f"solver)")
+        return self.T[:k].copy(), Y, YP, self.L[:k].copy(), self.MO[:k].copy()
 
 
 def scale_hint(c) -> str:

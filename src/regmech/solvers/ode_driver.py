@@ -406,6 +406,8 @@ class _Sink:
 
     def __init__(self, c, rec, probe):
         self.c, self.rec, self.probe = c, rec, probe
+        from ..compile.odeform import ode_form
+        self.linear = ode_form(c).linear
 
     def row(self, t, y, yp, modes, left=False):
         if self.rec is not None:
@@ -418,10 +420,14 @@ class _Sink:
         if exact and self.probe is not None:
             self.probe.add(t, u)
         if self.rec is not None:
-            self.rec.add(t, *(row or consistent_row(self.c, t, u, modes, g)), modes, left=left)
+            if row is None and self.linear:     # filled in place: no row arrays to allocate and copy
+                consistent_row(self.c, t, u, modes, g, out=self.rec.row_buffers(self.c.N))
+                self.rec.commit(t, modes, left)
+            else:
+                self.rec.add(t, *(row or consistent_row(self.c, t, u, modes, g)), modes, left=left)
 
 
-def consistent_row(c, t, u, modes, g=None):
+def consistent_row(c, t, u, modes, g=None, out=None):
     """Full ``(y, y')`` for the output from the ODE state.
 
     The same layout as ``CompiledSystem.assemble_y``, without its forward
@@ -429,15 +435,15 @@ def consistent_row(c, t, u, modes, g=None):
     predictor uses those; the named outputs never do), which halves the
     cost of recording. For the linear form of ``compile.odeform`` (no
     constraints: u is the whole state) ``y'`` is ``g(t, u)`` itself, taken
-    from ``g`` when the caller has it.
+    from ``g`` when the caller has it, and the row can be written into
+    ``out`` (zeroed ``(y, y')``, e.g. ``Recorder.row_buffers``).
     """
     form = c.__dict__.get("_ode_form")
     if form is not None and form.linear:
         n = c.n
         if g is None:
             g = form.rhs(t, u)
-        y = np.zeros(c.N)
-        yp = np.zeros(c.N)
+        y, yp = out if out is not None else (np.zeros(c.N), np.zeros(c.N))
         y[c._sx], y[c._sv], y[c._sz] = u[:n], u[n:2 * n], u[2 * n:]
         yp[c._sx], yp[c._sv], yp[c._sz] = u[n:2 * n], g[n:2 * n], g[2 * n:]
         return y, yp
@@ -785,7 +791,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         y, yp = c.initial_y(t_start, modes)
     problem = OdeProblem(c, modes)
     u = c.ode_state(y)
-    rec = Recorder(c.mf) if record else None
+    rec = Recorder(c.mf, capacity=len(grid) + 2 * len(stops) + 8) if record else None
     out = _Sink(c, rec, probe)
     out.row(t_start, y, yp, modes)
     if probe is not None:
