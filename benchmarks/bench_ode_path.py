@@ -10,7 +10,7 @@ whole call timed) and the hand-written version run back to back, so both see the
 machine load; the table gives the medians and their ratio. With ``--old SRC`` the same
 regmech calls run right after in a subprocess with ``PYTHONPATH=SRC`` (another checkout,
 e.g. main before the change): before/after in one run (an old case stops repeating
-after ``--old-limit`` seconds).
+after ``--old-limit`` seconds, and its process is stopped after ``--old-timeout``).
 
 Models (the hand versions are written out below, a few numpy lines each):
 
@@ -220,11 +220,15 @@ def worker(cases, repeat, hand_too):
               flush=True)
 
 
-def run_worker(src, cases, repeat, hand_too):
+def run_worker(src, cases, repeat, hand_too, timeout=3600):
     env = dict(os.environ, PYTHONPATH=src, OPENBLAS_NUM_THREADS="1")
     arg = json.dumps({"cases": cases, "repeat": repeat, "hand": hand_too})
-    out = subprocess.run([sys.executable, __file__, "--worker", arg], env=env, capture_output=True, text=True,
-                         timeout=3600)
+    try:
+        out = subprocess.run([sys.executable, __file__, "--worker", arg], env=env, capture_output=True, text=True,
+                             timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return [{"model": n, "solver": s, "regmech": [], "error": f"no result within {timeout:g} s (stopped)"}
+                for n, s, _ in cases]
     if out.returncode:
         sys.stderr.write(out.stderr[-3000:])
     return [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
@@ -239,6 +243,7 @@ def main():
     ap.add_argument("--solvers", nargs="*", default=list(SOLVERS))
     ap.add_argument("--old", help="src folder of another regmech checkout, timed in the same run (before)")
     ap.add_argument("--old-limit", type=float, default=60.0, help="stop repeating an old case beyond this [s]")
+    ap.add_argument("--old-timeout", type=float, default=300.0, help="stop an old case's process after this [s]")
     ap.add_argument("--out")
     args = ap.parse_args()
     if args.worker:
@@ -254,8 +259,9 @@ def main():
         new = {r["solver"]: r for r in run_worker(new_src, cases, args.repeat, True)}
         old = {}
         if args.old:
-            old = {r["solver"]: r for r in run_worker(args.old, [(n, s, args.old_limit) for n, s, _ in cases],
-                                                     args.repeat, False)}
+            for case in cases:      # one process per case, so that one that never ends is stopped alone
+                old.update({r["solver"]: r for r in run_worker(args.old, [(case[0], case[1], args.old_limit)],
+                                                              args.repeat, False, timeout=args.old_timeout)})
         for _, solver, _ in cases:
             r, o = new.get(solver, {}), old.get(solver, {})
             med = {key: statistics.median(r[key]) for key in ("regmech", "hand") if r.get(key)}
@@ -286,7 +292,7 @@ def report(rows, args):
         speed = f"{r['old'] / r['new']:.1f}" if r["old"] and r["new"] else "-"
         old = ms(r["old"]) + (f" ({r['n_old']}x)" if r["old"] and r["n_old"] < args.repeat else "")
         diff = f"{r['diff']:.1e}" if r["diff"] is not None else "-"
-        note = r["error"] or (f"old: {r['old_error']}" if r["old_error"] else "")
+        note = r["error"] or (f"old: {r['old_error']}" if r.get("old_error") else "")
         out.append(f"| {r['model']} | {r['solver']} | {ms(r['new'])} | {ms(r['hand'])} | {ratio} | {old} | {speed} | "
                    f"{r['steps']} | {r['rhs']} ({r['hand_rhs']}) | {diff} | {note} |")
     return "\n".join(out) + "\n"

@@ -191,8 +191,11 @@ class OdeForm:
         """``dg/du`` of the linear form (exact, constant; built on first use)."""
         if self._A is None:
             c, n, n_c = self.c, self.n, self.n_c
-            cols = np.concatenate([c.ix, c.iv, c.iz]).astype(np.int64)         # u = [x, v, z] in y
-            Tu = sp.csr_matrix(self.plan.T)[:, cols]
+            if self.on_u:
+                Tu = sp.csr_matrix(self.T)
+            else:
+                cols = np.concatenate([c.ix, c.iv, c.iz]).astype(np.int64)     # u = [x, v, z] in y
+                Tu = sp.csr_matrix(self.plan.T)[:, cols]
             force = -(sp.diags(1.0 / c.mass) @ c.ScT) if n_c else sp.csr_matrix((n, 0))
             top = sp.hstack([sp.csr_matrix((n, n)), sp.identity(n, format="csr"), sp.csr_matrix((n, c.nz))])
             self._A = sp.vstack([top, force @ Tu[:n_c], Tu[n_c:]]).tocsr()

@@ -617,9 +617,10 @@ def spectral_bound(J, c) -> float:
     val = np.abs(J.data) * w[J.row] / w[J.col]
     power = e[J.row] - e[J.col]                 # -1, 0 or 1: the entry scales as s**power
 
-    def sums(index):
-        parts = [np.bincount(index[power == k], weights=val[power == k], minlength=size) for k in (1, 0, -1)]
-        return parts                            # p (times s), q, r (over s)
+    parts = [np.where(power == k, val, 0.0) for k in (1, 0, -1)]
+
+    def sums(index):                            # p (times s), q, r (over s) of every row (or column)
+        return [np.bincount(index, weights=w, minlength=size) for w in parts]
 
     best = np.inf
     for p, q, r in (sums(J.row), sums(J.col)):
@@ -627,25 +628,30 @@ def spectral_bound(J, c) -> float:
             best = min(best, float(q.max()))
             continue
 
-        def norm(log_s):
+        def norm(log_s, p, q, r):
             s_ = math.exp(log_s)
             return float(np.max(p * s_ + q + r / s_))
-        # max of convex functions of s: unimodal in log s; golden-section search on a wide bracket
         scale = math.sqrt(max(r.max(), 1e-300) / max(p.max(), 1e-300))
+        # the search runs on the few rows that can be the largest near the optimum (the largest p, q, r and
+        # sums); the bound is then the norm over every row at the s found (valid for any s)
+        keys = (p, q, r, p * scale + q + r / scale)
+        keep = np.unique(np.concatenate([np.argpartition(-k, min(32, len(k) - 1))[:33] for k in keys]))
+        pk, qk, rk = p[keep], q[keep], r[keep]
+        # max of convex functions of s: unimodal in log s; golden-section search on a wide bracket
         lo, hi = math.log(scale) - 30.0, math.log(scale) + 30.0
         g = (math.sqrt(5.0) - 1.0) / 2.0
         a, b = hi - g * (hi - lo), lo + g * (hi - lo)
-        fa, fb = norm(a), norm(b)
-        for _ in range(50):
+        fa, fb = norm(a, pk, qk, rk), norm(b, pk, qk, rk)
+        for _ in range(60):
             if fa <= fb:
                 hi, b, fb = b, a, fa
                 a = hi - g * (hi - lo)
-                fa = norm(a)
+                fa = norm(a, pk, qk, rk)
             else:
                 lo, a, fa = a, b, fb
                 b = lo + g * (hi - lo)
-                fb = norm(b)
-        best = min(best, fa, fb, norm(math.log(scale)))
+                fb = norm(b, pk, qk, rk)
+        best = min(best, norm(a if fa <= fb else b, p, q, r), norm(math.log(scale), p, q, r))
     return float(best)
 
 
