@@ -82,7 +82,7 @@ class CompiledSystem:
 
     # -------------------------------------------------------------- pickling
     #: caches that hold SuperLU factorisations (not picklable) or plans derived from them; rebuilt on use
-    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan")
+    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form")
 
     def __getstate__(self):
         """Everything but the factorisation caches (``KernelGroup`` leaves out its lambdified template)."""
@@ -154,6 +154,13 @@ class CompiledSystem:
 
     def _refs(self, t):
         """g_p, g_p', g_p'' (mp) and g_v, g_v' (mv) at t."""
+        if not self._pos_sig and not self._spd_sig:        # no motion source: the references are all zero
+            zeros = self.__dict__.get("_zero_refs")
+            if zeros is None:
+                zeros = self._zero_refs = (np.zeros((3, self.mp)), np.zeros((2, self.mv)))
+                for z in zeros:
+                    z.flags.writeable = False
+            return zeros
         left = t >= self._t_right
         gp = np.zeros((3, self.mp))
         for j, s in self._pos_sig:
@@ -299,7 +306,9 @@ class CompiledSystem:
 
     def accelerations(self, t, x, v, z, modes):
         """Solve the motion and acceleration-level equations for (a, lam, dz)."""
-        e, de, tau, dz, _ = self.kernel_outputs(x, v, z, t)
+        plan = self._plan       # the device outputs only (``kernel_outputs`` adds e, e' and Jacobian weights)
+        out = plan.device_outputs(x, v, z, t, t >= self._t_right, self._sx, self._sv, self._sz)
+        tau, dz = out[:plan.n_c], out[plan.n_c:]
         gp, gv = self._refs(t)
         parts = [-(self.ScT @ tau), gp[2], gv[1]]
         relations = ()
@@ -498,6 +507,17 @@ class CompiledSystem:
         return lu.solve(rhs)
 
     def ode_rhs(self, t, u, modes):
+        """``u' = g(t, u)``; a linear model without constraints takes ``compile.odeform``'s ``A u + b(t)``."""
+        form = self.__dict__.get("_ode_form")
+        if form is None:
+            from .odeform import ode_form
+            form = ode_form(self)
+        if form.linear:
+            return form.rhs(t, u)
+        return self.ode_rhs_general(t, u, modes)
+
+    def ode_rhs_general(self, t, u, modes):
+        """``u' = g(t, u)`` through the lift, the device forces and the KKT solve (any model)."""
         x, v, z = self.ode_lift(t, u, modes)
         a, lam, dz = self.accelerations(t, x, v, z, modes)
         if self.mf:

@@ -62,6 +62,7 @@ class FixedStepper(Stepper):
 
     #: convergence order p (for the error estimate)
     order = 4
+    slope_at_end = True         # ``advance`` returns g(t + h, u_new)
 
     def __init__(self, problem, t0, u0, t_bound, knots, h, clock=KnotClock):
         self.problem = problem

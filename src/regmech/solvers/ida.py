@@ -331,7 +331,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     else:
         y, yp = _start_values(model, c, t_start, modes)
     events: list[Event] = []
-    rec = Recorder(c.mf)
+    rec = Recorder(c.mf, capacity=len(grid) + 2 * len(bps) + 8)
     rec.add(t_start, y, yp, modes)
     t = t_start
     bp_iter = iter(bps + [t_end])

@@ -1,0 +1,212 @@
+"""The right-hand side of the ODE form ``u' = g(t, u)`` with as few array operations as the model allows.
+
+``u = [x_K, v_K, z]`` (``CompiledSystem.ode_state``). In general ``g`` lifts
+``u`` to all coordinates through the constraints, evaluates the device
+forces and solves the acceleration-level (KKT) system of the current modes
+(``CompiledSystem.ode_rhs_general``): a dozen numpy and sparse calls, some
+30 us on a small model before any arithmetic.
+
+A model without constraints (no rigid links, gears, motion sources:
+``m == 0``), without friction rows and whose devices are all *affine*
+(springs, dampers, sources: ``compile.kernels``) needs none of that:
+``u = [x, v, z]`` is the whole state, the KKT system is the diagonal mass
+matrix, and
+
+    [tau; dz] = T y + t0 + V s(t),     g = [v; -M^-1 S^T tau; dz]
+
+with ``s(t)`` the offsets of the affine devices whose force changes in time
+(a torque source's signal, evaluated by its class). These are the products
+of the general path (``EvaluationPlan.device_outputs``: the same matrices,
+their terms added in the same order, and a division by the masses where
+the general path's LU of the diagonal divides by the same pivots), so both
+give the same numbers to the last bit; large matrices whose entries lie on
+a few diagonals are multiplied in DIA form (``fast_operator``), which
+keeps that order. Same numbers matter: DOP853 held at its stability limit
+(the hard case ``inertia_ratio_1e8``) ends 4e-6 to 1.5e-4 of the range off
+depending on the last bits of g alone (measured with four orders of the
+same sums), so a faster form that rounds differently would move results
+that tests hold to 1e-4. The link forces are formed first and summed at the masses after:
+multiplying the two matrices out into one ``A = -M^-1 S^T T`` would be one
+product fewer, but a mass between a stiff and a soft link would then carry
+a coefficient ``(k_stiff + k_soft) / m`` in which the soft link's share is
+lost to round-off (a spurious spring to the ground: measured on the hard
+case ``stretched_1e5``, accelerations off by 1e-7 of their size and scipy
+Radau's Newton iteration needing 3 times the steps). ``A`` is only built
+for ``jacobian`` (the spectral bound of the up-front stiffness check).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+#: matrices up to this many entries are used dense (as ``compile.evaluation`` does for its own)
+DENSE_MAX = 6000
+
+
+def fast_operator(M):
+    """``M`` (sparse or dense) as the cheapest operator for ``M @ x`` that gives the same numbers as
+    ``M @ x`` in CSR: dense stays dense; a CSR matrix whose entries lie on few diagonals, met by every
+    row in the same order (a chain's matrices: 4 and 2 diagonals), becomes DIA with its diagonals in
+    that order (scipy's DIA product adds the diagonals one by one in their stored order, i.e. each row's
+    terms in the order CSR adds them, and runs along contiguous memory: 4 to 7 times faster at 10,000
+    inertias); CSR otherwise."""
+    if not sp.issparse(M):
+        return M
+    M = sp.csr_matrix(M)
+    rows, cols = M.shape
+    if M.nnz == 0 or rows * cols <= DENSE_MAX:
+        return M
+    row_of = np.repeat(np.arange(rows), np.diff(M.indptr))
+    offsets = M.indices - row_of
+    diagonals = np.unique(offsets)
+    if len(diagonals) * min(rows, cols) > 2 * M.nnz:
+        return M
+    same_row = row_of[1:] == row_of[:-1]
+    for order in (diagonals, np.array(list(dict.fromkeys(offsets.tolist())))):   # ascending (sorted rows), met
+        by_value = np.argsort(order)                        # order[by_value] ascending
+        rank = by_value[np.searchsorted(order[by_value], offsets)]    # each entry's diagonal's place in order
+        if not np.any(rank[1:][same_row] <= rank[:-1][same_row]):
+            break
+    else:
+        return M                                           # no single order serves every row
+    ranks = rank
+    data = np.zeros((len(order), cols))
+    data[ranks, M.indices] = M.data                        # DIA stores entry (i, i + o) at data[k, i + o]
+    return sp.dia_matrix((data, np.array(order)), shape=M.shape)
+
+
+try:        # scipy's compiled kernels behind ``M @ x``, called without its checks (5 us a product)
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec, dia_matvec as _dia_matvec
+except ImportError:     # a private module of scipy: fall back on the operator when it moves
+    _csr_matvec = _dia_matvec = None
+
+
+class MatVec:
+    """``x -> M @ x`` for a dense, DIA or CSR ``M`` (``fast_operator``), the same numbers as ``M @ x``."""
+
+    def __init__(self, M):
+        self.M = M
+        self.rows, self.cols = M.shape
+        self.kind = "op"
+        if sp.issparse(M) and _csr_matvec is not None:
+            if M.format == "dia" and M.data.dtype == np.float64:
+                self.kind, self.offsets, self.data = "dia", np.ascontiguousarray(M.offsets), \
+                    np.ascontiguousarray(M.data)
+            elif M.format == "csr" and M.data.dtype == np.float64:
+                self.kind = "csr"
+
+    def __call__(self, x):
+        if self.kind != "op":
+            x = np.ascontiguousarray(x, dtype=np.float64)     # the kernels read raw memory
+        if self.kind == "dia":
+            y = np.zeros(self.rows)
+            _dia_matvec(self.rows, self.cols, len(self.offsets), self.data.shape[1], self.offsets, self.data, x, y)
+            return y
+        if self.kind == "csr":
+            M = self.M
+            y = np.zeros(self.rows)
+            _csr_matvec(self.rows, self.cols, M.indptr, M.indices, M.data, x, y)
+            return y
+        return self.M @ x
+
+
+class OdeForm:
+    """``g(t, u)`` of one compiled system (see the module docstring); ``linear`` when the fast form applies."""
+
+    def __init__(self, c):
+        self.c = c
+        plan = c._plan
+        self.linear = (c.m == 0 and c.mf == 0 and not plan.nonlinear and c.n > 0
+                       and bool(np.all(c.mass > 0)))
+        self._A = None
+        if self.linear:
+            n = c.n
+            self.n, self.n_c, self.plan = n, plan.n_c, plan
+            self.size = 2 * n + c.nz
+            self.T = plan.T                            # on y = [x0, v0, x1, v1, ..., z], as the general path
+            self.on_u = False
+            if sp.issparse(plan.T):
+                # the same rows with the columns of u = [x, v, z] and every row's terms kept in their order
+                # (then the product adds exactly what plan.T @ y adds, without filling y first)
+                T = sp.csr_matrix(plan.T)
+                where = np.empty(c.N, np.int64)
+                where[c.ix], where[c.iv], where[c.iz] = np.arange(n), n + np.arange(n), 2 * n + np.arange(c.nz)
+                Tu = sp.csr_matrix((T.data, where[T.indices], T.indptr), shape=(T.shape[0], self.size))
+                Tu.has_sorted_indices = False
+                self.T = fast_operator(Tu)
+                self.on_u = True
+            self.T_mv = MatVec(self.T)
+            self.t0 = plan.t0
+            self.ScT = fast_operator(c.ScT) if self.n_c else None
+            self.ScT_mv = MatVec(self.ScT) if self.n_c else None
+            self.mass = c.mass
+            self.V = plan.V
+            self.v_rows = self.v_cols = None
+            if sp.issparse(plan.V):
+                # a large model: only the rows and slots that the time-varying offsets touch, when each
+                # such row has one term (then the compact product adds exactly what the full one does)
+                V = sp.csr_matrix(plan.V)
+                per_row = np.diff(V.indptr)
+                if per_row.max(initial=0) == 1:
+                    self.v_rows = np.nonzero(per_row)[0]
+                    self.v_cols = V.indices[V.indptr[self.v_rows]]
+                    self.v_vals = V.data[V.indptr[self.v_rows]]
+            self.slots = plan.offset_slots
+            self.buf = plan.buf
+
+    def rhs(self, t, u):
+        """``[v; -M^-1 S^T tau; dz]`` (linear form only; see the module docstring)."""
+        c, n, n_c = self.c, self.n, self.n_c
+        if self.on_u:
+            out = self.T_mv(u)
+        else:
+            yb = self.plan.ybuf
+            yb[c._sx] = u[:n]
+            yb[c._sv] = u[n:2 * n]
+            yb[c._sz] = u[2 * n:]
+            out = self.T_mv(yb)
+        out += self.t0
+        if self.V is not None:
+            left = t >= c._t_right
+            buf = self.buf
+            for grp, start in self.slots:
+                grp.offsets_into(buf, start, t, left)
+            for bank, sl in self.plan._input_writes:       # offsets linear in their signals: the values
+                buf[sl] = bank.at(t, left)
+            if self.v_rows is None:
+                out += self.V @ buf
+            else:
+                out[self.v_rows] += self.v_vals * buf[self.v_cols]
+        g = np.empty(self.size)
+        g[:n] = u[n:2 * n]
+        if n_c:
+            f = self.ScT_mv(out[:n_c])
+            np.negative(f, out=f)
+            np.divide(f, self.mass, out=g[n:2 * n])
+        else:
+            g[n:2 * n] = 0.0
+        g[2 * n:] = out[n_c:]
+        return g
+
+    def jacobian(self) -> sp.csr_matrix:
+        """``dg/du`` of the linear form (exact, constant; built on first use)."""
+        if self._A is None:
+            c, n, n_c = self.c, self.n, self.n_c
+            if self.on_u:
+                Tu = sp.csr_matrix(self.T)
+            else:
+                cols = np.concatenate([c.ix, c.iv, c.iz]).astype(np.int64)     # u = [x, v, z] in y
+                Tu = sp.csr_matrix(self.plan.T)[:, cols]
+            force = -(sp.diags(1.0 / c.mass) @ c.ScT) if n_c else sp.csr_matrix((n, 0))
+            top = sp.hstack([sp.csr_matrix((n, n)), sp.identity(n, format="csr"), sp.csr_matrix((n, c.nz))])
+            self._A = sp.vstack([top, force @ Tu[:n_c], Tu[n_c:]]).tocsr()
+        return self._A
+
+
+def ode_form(c) -> OdeForm:
+    """The ``OdeForm`` of a compiled system, built once (it reads only constant matrices of ``c``)."""
+    form = c.__dict__.get("_ode_form")
+    if form is None:
+        form = c._ode_form = OdeForm(c)
+    return form

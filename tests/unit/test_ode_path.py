@@ -1,0 +1,156 @@
+"""The ODE-form path's fast pieces (issue 15): the linear form of ``compile.odeform``, the spectral bound
+of the explicit methods' up-front stiffness check, the signal list kept with the compiled model."""
+
+import numpy as np
+import pytest
+
+import regmech as rm
+from regmech.bench.hard_models import stretched_chain
+from regmech.compile.odeform import fast_operator, ode_form
+from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
+from regmech.signals import Sine, Step
+from regmech.solvers import ode_driver as od
+from regmech.solvers.common import signal_breakpoints
+
+
+def chain(n, c=1e4, d=1.0, drive=None):
+    m = rm.Model(f"chain{n}")
+    fixed = m.add(Fixed("fixed"))
+    tq = m.add(Torque("drive", tau=drive if drive is not None else Sine(amplitude=10.0, freq_hz=5.0)))
+    J = [m.add(Inertia(f"J{i}", J=1.0 + 0.01 * (i % 7))) for i in range(n)]
+    m.connect(tq.flange, J[0].flange_a)
+    for i in range(n - 1):
+        sd = m.add(SpringDamper(f"sd{i}", c=c, d=d))
+        m.connect(J[i].flange_b, sd.flange_a)
+        m.connect(sd.flange_b, J[i + 1].flange_a)
+    end = m.add(Spring("ground", c=1e3))
+    m.connect(J[-1].flange_b, end.flange_a)
+    m.connect(end.flange_b, fixed.flange)
+    return m
+
+
+def start(c):
+    modes = c.modes0
+    y, _ = c.initial_y(0.0, modes)
+    return od.OdeProblem(c, modes), c.ode_state(y)
+
+
+@pytest.mark.parametrize("build", [lambda: chain(5), lambda: chain(1500),
+                                   lambda: stretched_chain(1e5)[0].to_model(stretched_chain(1e5)[1])],
+                         ids=["chain5", "chain1500", "stretched_1e5"])
+def test_linear_form_gives_the_general_path_to_the_last_bit(build):
+    # same sums in the same order (DIA only where it keeps the order): DOP853 at its stability limit moves
+    # by far more than round-off when the last bits of g change, so the fast form must not change them
+    c = build().compile()
+    form = ode_form(c)
+    assert form.linear
+    rng = np.random.default_rng(3)
+    for t in (0.0, 0.37, 1.9):
+        u = rng.normal(size=c.ode_size()) * 10.0 ** rng.integers(-3, 3)
+        assert np.array_equal(c.ode_rhs(t, u, c.modes0), c.ode_rhs_general(t, u, c.modes0))
+
+
+def test_linear_form_jacobian_is_the_exact_dg_du():
+    c = chain(6).compile()
+    problem, u = start(c)
+    A = od.ode_jacobian(problem, 0.1, u).toarray()
+    fd = problem.jacobian(0.1, u).toarray()
+    assert np.allclose(A, fd, rtol=1e-6, atol=1e-6 * np.abs(A).max())
+
+
+def test_fast_operator_keeps_every_row_in_its_order():
+    import scipy.sparse as sp
+    rng = np.random.default_rng(0)
+    n = 5000
+    band = sp.diags([rng.normal(size=n - 1), rng.normal(size=n), rng.normal(size=n - 1)], [-1, 0, 1], format="csr")
+    x = rng.normal(size=n) * 1e8
+    op = fast_operator(band)
+    assert sp.isspmatrix_dia(op) and np.array_equal(op @ x, band @ x)
+    # rows stored out of column order: DIA only if one order of the diagonals serves every row
+    shuffled = sp.csr_matrix((band.data.copy(), band.indices.copy(), band.indptr.copy()), shape=band.shape)
+    for i in range(1, n - 1):
+        lo = shuffled.indptr[i]
+        shuffled.indices[lo:lo + 3] = shuffled.indices[lo:lo + 3][[2, 0, 1]]
+        shuffled.data[lo:lo + 3] = shuffled.data[lo:lo + 3][[2, 0, 1]]
+    shuffled.has_sorted_indices = False
+    op = fast_operator(shuffled)
+    assert np.array_equal(op @ x, shuffled @ x)
+    scattered = sp.random(n, n, density=3e-4, random_state=1, format="csr")
+    assert sp.isspmatrix_csr(fast_operator(scattered))        # entries on many diagonals: stays CSR
+
+
+def _models():
+    from regmech.library import excavator_swing, first, gear_shift, train
+    return {"chain30": chain(30), "chain300": chain(300), "train_100": train(100), "first": first(),
+            "excavator": excavator_swing(), "gear_shift": gear_shift(),
+            "stretched_1e5": stretched_chain(1e5)[0].to_model(stretched_chain(1e5)[1])}
+
+
+@pytest.mark.parametrize("name", ["chain30", "chain300", "train_100", "first", "excavator", "gear_shift",
+                                  "stretched_1e5"])
+def test_spectral_bound_is_an_upper_bound(name):
+    c = _models()[name].compile()
+    problem, u = start(c)
+    J = od.ode_jacobian(problem, 0.0, u)
+    exact = float(np.max(np.abs(np.linalg.eigvals(J.toarray()))))
+    bound = od.spectral_bound(J, c)
+    assert bound >= exact * (1 - 1e-9)
+    if name.startswith("chain"):          # springs and dampers: the highest frequency plus the damping
+        assert bound <= 1.05 * exact
+
+
+def test_up_front_check_decides_by_the_exact_radius_near_its_line():
+    # chain30: exact radius ~196 1/s, bound ~201; DOP853 is stable for h rho up to 6, so over 1 s the
+    # check refuses when max_steps < rho / 6: with 33 the line (198) lies between radius and bound, and
+    # the run must start (it then meets the step count); with 30 (180) it is refused before the first step
+    c = chain(30).compile()
+    problem, u = start(c)
+    J = od.ode_jacobian(problem, 0.0, u)
+    exact = float(np.max(np.abs(np.linalg.eigvals(J.toarray()))))
+    bound = od.spectral_bound(J, c)
+    assert exact < 6 * 33 < bound
+    m = chain(30)
+    with pytest.raises(rm.SimulationError) as err:
+        m.simulate(1.0, 0.01, solver="scipy:DOP853", max_steps=33)
+    assert "took more than max_steps=33" in str(err.value)
+    with pytest.raises(rm.SimulationError) as err:
+        m.simulate(1.0, 0.01, solver="scipy:DOP853", max_steps=30)
+    assert "limits this explicit method" in str(err.value) and "stiff for an explicit method" in str(err.value)
+
+
+def test_spectral_radius_of_a_large_model_is_bounded_work():
+    # beyond DENSE_EIG_MAX states only a refusal candidate asks ARPACK, with a bounded number of restarts
+    c = chain(400).compile()
+    problem, u = start(c)
+    assert problem.size > od.DENSE_EIG_MAX
+    J = od.ode_jacobian(problem, 0.0, u)
+    bound = od.spectral_bound(J, c)
+    assert od.spectral_radius(problem, 0.0, u, above=2 * bound) == bound      # settled by the bound
+    rho = od.spectral_radius(problem, 0.0, u, above=1.0)                      # a refusal candidate
+    assert rho is not None and 150.0 < rho <= bound * (1 + 1e-9)
+
+
+def test_signal_list_follows_a_changed_parameter():
+    m = chain(3, drive=Step(height=1.0, start_time=0.5))
+    m.compile()
+    assert signal_breakpoints(m, 0.0, 1.0) == [0.5]
+    assert signal_breakpoints(m, 0.0, 1.0) == [0.5]          # kept with the compiled model
+    m["drive"].tau = Step(height=1.0, start_time=0.3)
+    assert signal_breakpoints(m, 0.0, 1.0) == [0.3]
+    m.compile()
+    assert signal_breakpoints(m, 0.0, 1.0) == [0.3]
+    res = m.simulate(1.0, 0.1, solver="rk4", tol=None, h=0.005)
+    # the run stops at the new breakpoint (its left and right limits beside the grid point), not the old one
+    assert np.count_nonzero(np.isclose(res.t, 0.3)) == 3 and np.count_nonzero(np.isclose(res.t, 0.5)) == 1
+
+
+def test_fixed_step_rows_with_the_step_slope_match_recomputed_rows():
+    # the output row at a step end takes y' from the stepper's slope g(t, u) instead of a new evaluation
+    m = chain(4)
+    res = m.simulate(0.5, 0.01, solver="rk4", tol=None)
+    c = m.compile()
+    names = c.structure.coord_names
+    for k in (1, 17, len(res.t) - 1):
+        u = np.array([res[f"{nm}.phi"][k] for nm in names] + [res[f"{nm}.w"][k] for nm in names])
+        a = c.ode_rhs_general(res.t[k], u, c.modes0)[len(names):]
+        assert np.array_equal([res[f"{nm}.a"][k] for nm in names], a)
