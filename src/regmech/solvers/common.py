@@ -134,22 +134,39 @@ def signal_breakpoints(model, t_start, t_end):
 
 
 class Recorder:
-    """Collects output rows (t, y, yp, left flag, modes)."""
+    """Collects output rows (t, y, yp, left flag, modes).
 
-    def __init__(self, modes_width: int):
+    ``yp_cols``: the columns of ``yp`` to keep (None: all). The named outputs
+    need only the derivatives of the speeds (``Trajectory`` takes ``yp_cols=c.iv``),
+    which halves what a run stores. ``arrays`` moves the rows into one array each,
+    releasing every row as it is copied, so the rows are never held twice.
+    """
+
+    def __init__(self, modes_width: int, yp_cols=None):
         self.t, self.y, self.yp, self.left, self.modes = [], [], [], [], []
         self.mw = modes_width
+        self.yp_cols = yp_cols
 
     def add(self, t, y, yp, modes, left=False):
         self.t.append(float(t))
         self.y.append(np.array(y, float))
-        self.yp.append(np.array(yp, float))
+        self.yp.append(np.array(yp if self.yp_cols is None else np.asarray(yp)[self.yp_cols], float))
         self.left.append(bool(left))
         self.modes.append(np.array(modes, int).copy())
 
+    @staticmethod
+    def _stack(rows: list) -> np.ndarray:
+        """One (rows x width) array from equal-length rows; empties the list as it goes."""
+        width = len(rows[0]) if rows else 0
+        out = np.empty((len(rows), width))
+        rows.reverse()
+        for k in range(len(out)):
+            out[k] = rows.pop()
+        return out
+
     def arrays(self):
-        Y = np.array(self.y)
-        YP = np.array(self.yp)
+        Y = self._stack(self.y)
+        YP = self._stack(self.yp)
         if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(YP))):
             k = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | ~np.all(np.isfinite(YP), axis=1))[0][0])
             raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.t[k]:.6g}; the model or the "
