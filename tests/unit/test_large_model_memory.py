@@ -190,3 +190,18 @@ def test_flanges_are_plain_attributes():
     assert vars(J)["flange_a"] is J.get_flange("flange_a") is J.flange_a
     with pytest.raises(rm.errors.UnknownFlangeError, match="flange_c"):
         J.flange_c
+
+
+def test_a_trajectory_pickled_with_all_of_y_prime_still_reads(chain_run):
+    """Pickles made when the trajectory kept the whole y' (and its eager matrices) load and read."""
+    from regmech.compile.outputs import Trajectory
+    m, res = chain_run
+    tr = res._traj
+    c = m.compile()
+    YP = np.zeros_like(tr.Y)
+    YP[:, c.iv] = tr.YPv
+    old = Trajectory.__new__(Trajectory)
+    old.__setstate__({"c": c, "t": tr.t, "Y": tr.Y, "YP": YP, "left": tr.left, "modes": tr.modes, "_mat": {},
+                      "_index_cache": None})
+    for name in ("J3.a", "sd9.tau", "ground_spring.potential"):
+        np.testing.assert_array_equal(old.get(name), res[name])

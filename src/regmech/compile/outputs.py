@@ -57,6 +57,15 @@ class Trajectory:
         state["_names"] = None
         return state
 
+    def __setstate__(self, state):
+        if "YPv" not in state:        # a trajectory pickled when it kept all of y' and eager matrices
+            c, YP = state["c"], state.pop("YP")
+            state["YPv"] = YP[:, c.iv] if YP.ndim == 2 and YP.shape[1] == c.N and c.N != c.n else YP
+            for key in ("_mat", "_index_cache"):
+                state.pop(key, None)
+        state.update(_recipes={}, _maps=None, _names=None)
+        self.__dict__.update(state)
+
     # columns over time ----------------------------------------------------------
     def _x(self, k):
         return self.Y[:, self.c.ix[k]]
