@@ -136,6 +136,10 @@ def read_only(value) -> np.ndarray:
     return arr
 
 
+#: instance attributes of components and subsystems, which a flange of the same name must not shadow
+_OWN_ATTRIBUTES = frozenset({"name", "model", "domain", "_values", "_flanges", "parts", "links"})
+
+
 class Component:
     """Base of every component. Subclasses declare ``Param`` attributes and ``flanges``.
 
@@ -221,14 +225,15 @@ class Component:
                 f"its flanges are {sorted(self._flanges)}") from None
 
     def _expose_flanges(self) -> None:
-        """Flanges as plain instance attributes, so ``J1.flange_a`` is a dictionary hit: reaching them
+        """Flanges as plain instance attributes, so ``J1.flange_a`` is found at once: reaching them
         through ``__getattr__`` costs a caught AttributeError (~2.5 us), seconds for a model of
-        100,000 components. A name the class itself uses is left to ``__getattr__`` (never shadowed)."""
-        d = self.__dict__
+        100,000 components. A name the class or the base's own attributes use is left to
+        ``__getattr__`` (never shadowed). ``self.__dict__`` is not touched: reading it would make a
+        dictionary object per instance (64 bytes and one more object for the garbage collector)."""
         cls = type(self)
         for fname, fl in self._flanges.items():
-            if not hasattr(cls, fname) and (fname not in d or isinstance(d[fname], Flange)):
-                d[fname] = fl
+            if fname not in _OWN_ATTRIBUTES and not hasattr(cls, fname):
+                object.__setattr__(self, fname, fl)
 
     def __getattr__(self, attr: str):
         flanges = self.__dict__.get("_flanges")

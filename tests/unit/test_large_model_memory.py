@@ -188,6 +188,11 @@ def test_parameter_declarations_are_cached_per_class():
 def test_flanges_are_plain_attributes():
     J = Inertia("J", J=1.0)
     assert vars(J)["flange_a"] is J.get_flange("flange_a") is J.flange_a
+    from regmech.components import Wheel
+    w = Wheel("w", radius=0.3, J=1.0, fn=1000.0, mu=1.0)
+    for port, target in Wheel.ports.items():
+        part, _, fname = target.partition(".")
+        assert getattr(w, port) is w.get_flange(port) is w.parts[part].get_flange(fname)
     with pytest.raises(rm.errors.UnknownFlangeError, match="flange_c"):
         J.flange_c
 
