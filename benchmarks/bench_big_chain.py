@@ -116,21 +116,22 @@ def row(label, r):
     ph = r["phases"]
     return (f"| {label} | {r['n']:,} | {r['points']} | " + " | ".join(f"{ph[p]:.2f}" for p in PHASES) +
             f" | {r['exit_s']:.2f} | **{r['process_wall_s']:.1f}** | {r['rss_mb']['compile']:.0f} | "
-            f"**{r['process_peak_mb']:.0f}** | {r['ida_wall_s']:.2f} |")
+            f"**{r['process_peak_mb']:.0f}** | {r['ida_wall_s']:.2f} ({2 if r['atol_rescaled'] else 1}) |")
 
 
 def markdown(rows, args, loads) -> str:
     import numpy as np
     import scipy
-    head = ("| code | n | points | import [s] | build [s] | compile [s] | simulate [s] | read [s] | exit [s] | "
-            "process [s] | RSS after compile [MB] | peak RSS [MB] | IDA wall (stats) [s] |\n" + "|---" * 13 + "|")
+    head = ("| code | n | points | import [s] | build [s] | compile [s] | simulate [s] | read [s] | start + exit [s] | "
+            "process [s] | RSS after compile [MB] | peak RSS [MB] | IDA wall (stats) [s] (runs) |\n" + "|---" * 13 + "|")
     lines = [
         "## Large chains end to end (`benchmarks/bench_big_chain.py`)",
         "",
         f"Chain of n inertias and spring-dampers (`bench_foundation.chain`), 1 s, `solver=\"ida\", rtol={RTOL:g}`, "
         f"dt_out {args.dt_out or 'default (500 intervals)'}; each run a fresh process; `process` is its whole "
         f"wall time and `peak RSS` its maximum resident set (as `/usr/bin/time -v`), the phases are timed inside "
-        f"it (`exit`: interpreter shutdown). Machine: {platform.machine()}, Python {platform.python_version()}, "
+        f"it (`start + exit`: the rest, interpreter start-up and shutdown); IDA's wall time is the sum over its "
+        f"runs (2: the motion was small for the scalar atol and the run was repeated with scaled tolerances). Machine: {platform.machine()}, Python {platform.python_version()}, "
         f"numpy {np.__version__}, scipy {scipy.__version__}; load average {', '.join(loads)} (2 cores shared with "
         f"other work: read the before/after ratios of the same run).",
         "",
