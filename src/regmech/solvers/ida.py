@@ -331,6 +331,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     stats.wall_time = time.perf_counter() - t0
     stats.events = len(events)
     from ..compile.outputs import Trajectory
+    sol = None               # IDA's own output rows: recorded, not to be held while the recorder stacks them
     T, Y, YP, L, MO = rec.arrays()
     return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
 
