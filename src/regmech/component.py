@@ -88,9 +88,15 @@ class Param:
         obj._changed()
 
     def validate(self, comp, value):
-        where = f"{type(comp).__name__} '{comp.name}'"
         if value is None and self.optional:
             return None
+        if type(value) is float and math.isfinite(value):
+            # the common case, decided without the general checks below (a model may have 100,000 of them)
+            chk = self.check
+            if chk == "real" or (chk == "positive" and value >= TINY) or (chk == "nonnegative" and value >= 0) \
+                    or (chk == "nonzero" and abs(value) >= TINY):
+                return value
+        where = f"{type(comp).__name__} '{comp.name}'"
         if self.check == "signal":
             return as_signal(value, comp, self.name, self.bounds, self.bounds_note)
         if self.check == "any":
@@ -245,6 +251,10 @@ def _positional_message(cls, args) -> str:
             f"(name, *, {listing}) (SI units; help({cls.__name__}) describes each)")
 
 
+#: instance attributes of components and subsystems, which a flange of the same name must not shadow
+_OWN_ATTRIBUTES = frozenset({"name", "model", "domain", "_values", "_flanges", "parts", "links"})
+
+
 class Component:
     """Base of every component. Subclasses declare ``Param`` attributes and ``flanges``.
 
@@ -286,7 +296,7 @@ class Component:
             raise ParameterError(f"{type(self).__name__} '{name}': domain must be one of {DOMAINS}, got {domain!r}")
         self.domain = domain
         self._values: dict[str, Any] = {}
-        declared = self.param_specs()
+        declared = self._declared()
         unknown = set(params) - set(declared)
         if unknown:
             raise ParameterError(
@@ -305,16 +315,27 @@ class Component:
             fname, fdomain = spec[0], spec[1] or domain
             grounded = bool(spec[2]) if len(spec) > 2 else False
             self._flanges[fname] = Flange(self, fname, fdomain, grounded)
+        self._expose_flanges()
         self.validate()
 
     # -- parameters ---------------------------------------------------------
     @classmethod
     def param_specs(cls) -> dict[str, Param]:
-        specs: dict[str, Param] = {}
-        for klass in reversed(cls.__mro__):
-            for key, val in vars(klass).items():
-                if isinstance(val, Param):
-                    specs[key] = val
+        """The declared parameters of the class (its own and inherited), name -> ``Param``."""
+        return dict(cls._declared())
+
+    @classmethod
+    def _declared(cls) -> dict[str, Param]:
+        # made once per class (walking the MRO for each of 100,000 instances cost ~1.5 s); the key is
+        # checked in the class's own __dict__ so that a subclass never reads its base's entry
+        specs = cls.__dict__.get("_param_specs_cache")
+        if specs is None:
+            specs = {}
+            for klass in reversed(cls.__mro__):
+                for key, val in vars(klass).items():
+                    if isinstance(val, Param):
+                        specs[key] = val
+            type.__setattr__(cls, "_param_specs_cache", specs)
         return specs
 
     def validate(self) -> None:
@@ -368,6 +389,17 @@ class Component:
             raise UnknownFlangeError(
                 f"{type(self).__name__} '{self.name}' has no flange '{name}'; "
                 f"its flanges are {sorted(self._flanges)}") from None
+
+    def _expose_flanges(self) -> None:
+        """Flanges as plain instance attributes, so ``J1.flange_a`` is found at once: reaching them
+        through ``__getattr__`` costs a caught AttributeError (~2.5 us), seconds for a model of
+        100,000 components. A name the class or the base's own attributes use is left to
+        ``__getattr__`` (never shadowed). ``self.__dict__`` is not touched: reading it would make a
+        dictionary object per instance (64 bytes and one more object for the garbage collector)."""
+        cls = type(self)
+        for fname, fl in self._flanges.items():
+            if fname not in _OWN_ATTRIBUTES and not hasattr(cls, fname):
+                object.__setattr__(self, fname, fl)
 
     def __getattr__(self, attr: str):
         flanges = self.__dict__.get("_flanges")
@@ -495,6 +527,7 @@ class Subsystem(Component):
             if pname not in self.parts:
                 raise ParameterError(f"{type(self).__name__} '{name}': port '{port}' refers to unknown part '{pname}'")
             self._flanges[port] = self.parts[pname].get_flange(fname)
+        self._expose_flanges()
 
     def build(self) -> None:  # pragma: no cover - abstract
         raise NotImplementedError

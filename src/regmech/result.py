@@ -136,7 +136,7 @@ class Result:
         return self._traj.names()
 
     def __contains__(self, name: str) -> bool:
-        return isinstance(name, str) and name in self._traj._index
+        return isinstance(name, str) and self._traj.has(name)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if not isinstance(name, str):

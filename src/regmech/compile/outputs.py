@@ -6,142 +6,267 @@ Names (Modelica style): ``J1.phi``, ``J1.w``, ``J1.a``, ``J1.kinetic``;
 ``spring.flange_a.tau``, ``spring.flange_a.phi``, ``spring.flange_a.w``;
 device states ``motor.i``; ``clutch.mode``. Translational components use
 ``s``, ``v``, ``f``, ``s_rel``, ``v_rel``.
+
+Only what is asked for is computed, and only from the columns it needs: a
+signal of one component costs O(points) memory and time, whatever the size of
+the model. The recipes of a component (name -> function of the trajectory)
+are made on the first request of one of its signals and kept; the device
+kernel (``KernelGroup``) is evaluated for that one instance, not its whole
+class. A model of 100,000 components read by a few of its signals thus never
+holds the (points x components x signals) matrices nor a recipe per signal
+of every component.
+
+Stored: ``Y`` (points x N, every unknown) and ``YPv`` (points x n, the
+derivatives of the speeds: the accelerations of the non-dummy coordinates);
+the rest of ``y'`` is not needed by any output.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..component import Body
-
 
 class Trajectory:
+    """The output rows of a run and the compiled system that reads them.
+
+    ``YP`` is either the full ``y'`` (points x ``c.N``) or only its speed
+    columns ``y'[:, c.iv]`` (points x ``c.n``; ``solvers.common.Recorder``
+    with ``yp_cols=c.iv`` records only those).
+    """
+
     def __init__(self, compiled, t, Y, YP, left, modes):
-        self.c = compiled
+        c = compiled
+        self.c = c
         self.t = np.asarray(t, float)
         self.Y = Y
-        self.YP = YP
+        YP = np.asarray(YP)
+        if YP.ndim == 2 and YP.shape[1] == c.N and c.N != c.n:
+            YP = YP[:, c.iv]         # a copy: the caller's full y' can be freed
+        self.YPv = YP
         self.left = np.asarray(left, bool)
         self.modes = modes
-        self._mat: dict = {}
-        self._index_cache = None
+        self._recipes: dict = {}     # component name -> {signal name: recipe}
+        self._maps = None            # name lookups over the whole structure, built on first use
+        self._names = None
 
     def __getstate__(self):
-        # the name index holds closures and the matrices are derived: both are rebuilt on first use
+        # recipes hold closures and the lookups are derived: both are rebuilt on first use
         state = self.__dict__.copy()
-        state["_mat"] = {}
-        state["_index_cache"] = None
+        state["_recipes"] = {}
+        state["_maps"] = None
+        state["_names"] = None
         return state
 
-    @property
-    def _index(self):
-        """name -> recipe, built on first use (it costs ~0.3 s for 1,000 masses)."""
-        if self._index_cache is None:
-            self._index_cache = self._build_index()
-        return self._index_cache
+    def __setstate__(self, state):
+        if "YPv" not in state:        # a trajectory pickled when it kept all of y' and eager matrices
+            c, YP = state["c"], state.pop("YP")
+            state["YPv"] = YP[:, c.iv] if YP.ndim == 2 and YP.shape[1] == c.N and c.N != c.n else YP
+            for key in ("_mat", "_index_cache"):
+                state.pop(key, None)
+        state.update(_recipes={}, _maps=None, _names=None)
+        self.__dict__.update(state)
 
-    # matrices over time -------------------------------------------------------
-    def _matrices(self):
-        if self._mat:
-            return self._mat
+    # columns over time ----------------------------------------------------------
+    def _x(self, k):
+        return self.Y[:, self.c.ix[k]]
+
+    def _v(self, k):
+        return self.Y[:, self.c.iv[k]]
+
+    def _a(self, k):
         c = self.c
-        Y, YP = self.Y, self.YP
-        X, V = Y[:, c.ix], Y[:, c.iv]
-        A = YP[:, c.iv].copy()
-        A[:, c.Dv] = Y[:, c.iad]
-        LAM, Z = Y[:, c.ilam], Y[:, c.iz]
-        E = X @ c.Sc.T.toarray() + c.e0c if c.Sc.shape[0] and c.n < 3000 else (c.Sc @ X.T).T + c.e0c
-        DE = (c.Sc @ V.T).T
-        DDE = (c.Sc @ A.T).T
-        TAU = np.zeros_like(E)
-        POT = np.zeros((len(self.t), len(c.groups)), dtype=object)
-        pot_dev = {}
-        for gi, g in enumerate(c.groups):
-            out = g.evaluate_series(E, DE, Z, self.t, self.left)
-            for r in range(g.tpl.k):
-                TAU[:, g.row_index[:, r]] = out[r]
-            pot = out[-1]
-            for i, d in enumerate(g.devices):
-                pot_dev[d.name] = pot[:, i]
-        G = c.Gall
-        GE = (G @ X.T).T + np.concatenate([c.e0p, np.zeros(c.mv), c.structure.offsets(c.structure.friction)]) if G.shape[0] else np.zeros((len(self.t), 0))
-        GDE = (G @ V.T).T if G.shape[0] else GE
-        GDDE = (G @ A.T).T if G.shape[0] else GE
-        self._mat.update(X=X, V=V, A=A, LAM=LAM, Z=Z, E=E, DE=DE, DDE=DDE, TAU=TAU, GE=GE, GDE=GDE, GDDE=GDDE,
-                         POT=pot_dev)
-        return self._mat
+        if c.is_dummy_v[k]:
+            return self.Y[:, c.iad[c.pos_in_Dv[k]]]
+        return self.YPv[:, k]
 
-    def _build_index(self):
-        """name -> recipe (a callable of the matrices)."""
+    @staticmethod
+    def _combine(cols, coefs, column):
+        """``sum_j coefs[j] * column(cols[j])`` accumulated in the row's order (as ``csr_matvec`` does)."""
+        acc = None
+        for k, cf in zip(cols, coefs):
+            term = cf * column(int(k))
+            acc = term if acc is None else acc + term
+        return acc
+
+    def _lookups(self):
+        """Body -> coordinate (None: grounded) and node, device -> kernel instance, row -> its place."""
+        if self._maps is not None:
+            return self._maps
         c = self.c
         st = c.structure
-        idx: dict = {}
-        for k, node in enumerate(st.coord_node):
-            for b in node.bodies:
-                pn, wn, an, _ = b.var_names()
-                idx[f"{b.name}.{pn}"] = lambda M, k=k: M["X"][:, k]
-                idx[f"{b.name}.{wn}"] = lambda M, k=k: M["V"][:, k]
-                idx[f"{b.name}.{an}"] = lambda M, k=k: M["A"][:, k]
-                idx[f"{b.name}.kinetic"] = lambda M, k=k, m=b.mass: 0.5 * m * M["V"][:, k] ** 2
+        body_node = {}
         for node in st.nodes:
-            if node.grounded:
-                for b in node.bodies:
-                    pn, wn, an, _ = b.var_names()
-                    for nm, val in ((pn, node.ground_position), (wn, 0.0), (an, 0.0)):
-                        idx[f"{b.name}.{nm}"] = lambda M, val=val: np.full(len(self.t), val)
-        comp_row = {id(r): ("c", i) for i, r in enumerate(st.compliant)}
-        cons = st.position + st.speed + st.friction
-        comp_row.update({id(r): ("g", i) for i, r in enumerate(cons)})
+            for b in node.bodies:
+                body_node.setdefault(b.name, node)
         node_of = {fl: nd for nd in st.nodes for fl in nd.flanges}
-        for dev in st.devices:
+        place = {id(r): ("c", i) for i, r in enumerate(st.compliant)}
+        place.update({id(r): ("g", i) for i, r in enumerate(st.position + st.speed + st.friction)})
+        instance = {}
+        for gi, g in enumerate(c.groups):
+            for i, d in enumerate(g.devices):
+                instance[d.name] = (g, i)
+        states: dict = {}
+        for j, name in enumerate(c.state_names):
+            states.setdefault(name.rpartition(".")[0], []).append((name, j))
+        modes: dict = {}
+        if c.mf:
+            for j, row in enumerate(st.friction):
+                modes.setdefault(row.device.name, []).append(j)
+        g_offsets = None
+        if c.Gall.shape[0]:
+            g_offsets = np.concatenate([c.e0p, np.zeros(c.mv), st.offsets(st.friction)])
+        self._maps = dict(body_node=body_node, node_of=node_of, place=place, instance=instance, states=states,
+                          modes=modes, g_offsets=g_offsets)
+        return self._maps
+
+    # rows of devices ---------------------------------------------------------------
+    def _row_e(self, where, level):
+        """Device coordinate of a row at ``level`` 0 (e), 1 (e') or 2 (e'')."""
+        c = self.c
+        kind, i = where
+        col = (self._x, self._v, self._a)[level]
+        M = c.Sc if kind == "c" else c.Gall
+        lo, hi = M.indptr[i], M.indptr[i + 1]
+        val = self._combine(M.indices[lo:hi], M.data[lo:hi], col)
+        if val is None:
+            val = np.zeros(len(self.t))
+        if level == 0:
+            val = val + (c.e0c[i] if kind == "c" else self._lookups()["g_offsets"][i])
+        return val
+
+    def _kernel(self, dev_name):
+        """The kernel outputs (forces of the rows, state rates, Jacobian weights, potential) of one
+        device over time, evaluated for that instance only."""
+        g, i = self._lookups()["instance"][dev_name]
+        c = self.c
+        tpl = g.tpl
+        n_t = len(self.t)
+        col = lambda v: np.asarray(v, float).reshape(n_t, 1)
+        rows = [("c", int(g.row_index[i, r])) for r in range(tpl.k)]
+        args = [col(self._row_e(w, 0)) for w in rows] + [col(self._row_e(w, 1)) for w in rows] + \
+               [col(self.Y[:, c.iz[int(g.state_index[i, s])]]) for s in range(len(tpl.states))] + \
+               [p[None, i:i + 1] for p in g.param_values] + \
+               [np.array([sigs[i].value(t, lf) for t, lf in zip(self.t, self.left)], float).reshape(n_t, 1)
+                for sigs in g.signals] + [self.t[:, None]]
+        out = tpl.fn(*args)
+        return [np.broadcast_to(np.asarray(o, dtype=float), (n_t, 1))[:, 0] for o in out]
+
+    # recipes of one component ------------------------------------------------------------
+    def _component_recipes(self, comp) -> dict:
+        """name -> recipe (a function of nothing) for every signal of ``comp``."""
+        from ..component import Body, Device
+        c = self.c
+        st = c.structure
+        maps = self._lookups()
+        n_t = len(self.t)
+        idx: dict = {}
+        if isinstance(comp, Body):
+            node = maps["body_node"].get(comp.name)
+            if node is not None:
+                pn, wn, an, _ = comp.var_names()
+                k = st.node_coord[node.index]
+                if k is not None:
+                    idx[f"{comp.name}.{pn}"] = lambda k=k: self._x(k)
+                    idx[f"{comp.name}.{wn}"] = lambda k=k: self._v(k)
+                    idx[f"{comp.name}.{an}"] = lambda k=k: self._a(k)
+                    idx[f"{comp.name}.kinetic"] = lambda k=k, m=comp.mass: 0.5 * m * self._v(k) ** 2
+                if node.grounded:
+                    for nm, val in ((pn, node.ground_position), (wn, 0.0), (an, 0.0)):
+                        idx[f"{comp.name}.{nm}"] = lambda val=val: np.full(n_t, val)
+        if isinstance(comp, Device) and comp.name in st.rows:
+            dev = comp
             rows = st.rows[dev.name]
-            where = [comp_row[id(r)] for r in rows]
+            where = [maps["place"][id(r)] for r in rows]
             names = dev.rel_names.get(dev.domain, (None,) * 4)
+            kernel = {}
 
-            def rec(kind, i, what):
-                if kind == "c":
-                    key = {"e": "E", "de": "DE", "dde": "DDE", "tau": "TAU"}[what]
-                else:
-                    key = {"e": "GE", "de": "GDE", "dde": "GDDE", "tau": "LAM"}[what]
-                return lambda M: M[key][:, i]
+            def kernel_out():
+                if "out" not in kernel:
+                    kernel["out"] = self._kernel(dev.name)
+                return kernel["out"]
 
-            k0, i0 = where[0]
+            def rec(w, what):
+                kind, i = w
+                if what == "tau":
+                    if kind == "g":
+                        return lambda: self.Y[:, c.ilam[i]]
+                    inst = maps["instance"].get(dev.name)
+                    if inst is None:         # a compliant row of a device of another kind: no kernel
+                        return lambda: np.zeros(n_t)
+                    r = [int(x) for x in inst[0].row_index[inst[1]]].index(i)
+                    return lambda: kernel_out()[r]
+                level = {"e": 0, "de": 1, "dde": 2}[what]
+                return lambda: self._row_e(w, level)
+
             for nm, what in zip(names, ("e", "de", "dde", "tau")):
                 if nm:
-                    idx[f"{dev.name}.{nm}"] = rec(k0, i0, what)
-            taus = [rec(k, i, "tau") for k, i in where]
-            dess = [rec(k, i, "de") for k, i in where]
-            idx[f"{dev.name}.power"] = lambda M, taus=taus, dess=dess: sum(tf(M) * df(M) for tf, df in zip(taus, dess))
+                    idx[f"{dev.name}.{nm}"] = rec(where[0], what)
+            taus = [rec(w, "tau") for w in where]
+            dess = [rec(w, "de") for w in where]
+            idx[f"{dev.name}.power"] = lambda: sum(tf() * df() for tf, df in zip(taus, dess))
             if dev.device_kind() == "compliant":
-                idx[f"{dev.name}.potential"] = lambda M, n=dev.name: np.asarray(M["POT"][n], float)
+                idx[f"{dev.name}.potential"] = lambda: np.asarray(kernel_out()[-1], float)
             spec = dev.rows()
             fnames = {f for row in spec for f in row}
             for fname in fnames:
                 coefs = [row.get(fname, 0.0) for row in spec]
-                idx[f"{dev.name}.{fname}.{dev.get_flange(fname).domain == 'rotational' and 'tau' or 'f'}"] = (
-                    lambda M, coefs=coefs, taus=taus: sum(cf * tf(M) for cf, tf in zip(coefs, taus) if cf))
                 fl = dev.get_flange(fname)
-                node = node_of[fl]
+                idx[f"{dev.name}.{fname}.{fl.domain == 'rotational' and 'tau' or 'f'}"] = (
+                    lambda coefs=coefs: sum(cf * tf() for cf, tf in zip(coefs, taus) if cf))
+                node = maps["node_of"][fl]
                 kk = st.node_coord[node.index]
                 pn, wn = ("phi", "w") if fl.domain == "rotational" else ("s", "v")
                 if kk is None:
-                    idx[f"{dev.name}.{fname}.{pn}"] = lambda M, p=node.ground_position: np.full(len(self.t), p)
-                    idx[f"{dev.name}.{fname}.{wn}"] = lambda M: np.zeros(len(self.t))
+                    idx[f"{dev.name}.{fname}.{pn}"] = lambda p=node.ground_position: np.full(n_t, p)
+                    idx[f"{dev.name}.{fname}.{wn}"] = lambda: np.zeros(n_t)
                 else:
-                    idx[f"{dev.name}.{fname}.{pn}"] = lambda M, kk=kk: M["X"][:, kk]
-                    idx[f"{dev.name}.{fname}.{wn}"] = lambda M, kk=kk: M["V"][:, kk]
-        for j, name in enumerate(c.state_names):
-            idx[name] = lambda M, j=j: M["Z"][:, j]
-        if c.mf:
-            for j, row in enumerate(st.friction):
-                idx[f"{row.device.name}.mode"] = lambda M, j=j: self.modes[:, j].astype(float)
+                    idx[f"{dev.name}.{fname}.{pn}"] = lambda kk=kk: self._x(kk)
+                    idx[f"{dev.name}.{fname}.{wn}"] = lambda kk=kk: self._v(kk)
+            for name, j in maps["states"].get(dev.name, ()):
+                idx[name] = lambda j=j: self.Y[:, c.iz[j]]
+            for j in maps["modes"].get(dev.name, ()):
+                idx[f"{dev.name}.mode"] = lambda j=j: self.modes[:, j].astype(float)
         return idx
 
-    def names(self) -> list[str]:
-        return sorted(self._index)
+    def _recipes_of(self, comp_name):
+        hit = self._recipes.get(comp_name)
+        if hit is None:
+            comp = self.c.model.components.get(comp_name)
+            hit = self._component_recipes(comp) if comp is not None else {}
+            self._recipes[comp_name] = hit
+        return hit
 
-    def get(self, name: str) -> np.ndarray:
-        recipe = self._index.get(name)
+    def _recipe(self, name: str):
+        """The recipe of ``name``: its component is the longest prefix before a '.' that names one
+        (parts of a subsystem are named ``sub.part``)."""
+        if not isinstance(name, str):
+            return None
+        comps = self.c.model.components
+        cut = len(name)
+        while True:
+            cut = name.rfind(".", 0, cut)
+            if cut <= 0:
+                return None
+            if name[:cut] in comps:
+                recipe = self._recipes_of(name[:cut]).get(name)
+                if recipe is not None:
+                    return recipe
+
+    # public -----------------------------------------------------------------------------
+    def has(self, name: str) -> bool:
+        return self._recipe(name) is not None
+
+    def names(self) -> list[str]:
+        """Every signal name, sorted (made once; the recipes themselves are not kept)."""
+        if self._names is None:
+            out = []
+            for comp in self.c.model.components.values():
+                out.extend(self._component_recipes(comp))
+            self._names = sorted(set(out))
+        return list(self._names)
+
+    def get(self, name: str) -> np.ndarray | None:
+        recipe = self._recipe(name)
         if recipe is None:
             return None
-        return np.asarray(recipe(self._matrices()), float)
+        return np.array(recipe(), float)

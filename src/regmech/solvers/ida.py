@@ -281,6 +281,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     if kind_atol is None:
         return res
     tol, factors = kind_atol
+    res = _FirstRun(res.stats)        # only its stats are kept: its output rows are not held during the second run
     try:
         again = _run_ida(**call, kind_atol=tol)
     except SimulationError as exc:
@@ -300,6 +301,13 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     st.jac_calls += first.jac_calls
     st.compile_time = first.compile_time
     return again
+
+
+class _FirstRun:
+    """What ``simulate_ida`` keeps of a run that is repeated: its stats."""
+
+    def __init__(self, stats):
+        self.stats = stats
 
 
 def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max_order, dense_max, max_events,
@@ -331,7 +339,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     else:
         y, yp = _start_values(model, c, t_start, modes)
     events: list[Event] = []
-    rec = Recorder(c.mf, capacity=len(grid) + 2 * len(bps) + 8)
+    # the outputs read only the speeds' derivatives of y'
+    rec = Recorder(c.mf, capacity=len(grid) + 2 * len(bps) + 8, yp_cols=c.iv)
     rec.add(t_start, y, yp, modes)
     t = t_start
     bp_iter = iter(bps + [t_end])
@@ -398,6 +407,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     stats.wall_time = time.perf_counter() - t0
     stats.events = len(events)
     from ..compile.outputs import Trajectory
+    sol = None               # IDA's own output rows: recorded, not to be held while the recorder stacks them
     T, Y, YP, L, MO = rec.arrays()
     return Result(Trajectory(c, T, Y, YP, L, MO), events, stats, model.name)
 
@@ -490,14 +500,20 @@ def _atol_vector(c, atol, y, yp, k_max, kind_atol=None):
 
 
 def _unpermute(sol, order):
-    """Solution arrays back in the compiled system's order."""
+    """Solution arrays back in the compiled system's order, row by row in place (a second array of
+    all output rows would double the memory of a large model's run)."""
     for name in ("y", "yp", "y_events", "yp_events"):
         val = getattr(sol, name, None)
         if val is not None and len(val):
+            arr = np.asarray(val)
+            if arr is val and arr.ndim == 2 and arr.flags.writeable:
+                for row in arr:
+                    row[:] = order.from_solver(row)
+                continue
             try:
-                setattr(sol, name, order.from_solver(np.asarray(val)))
+                setattr(sol, name, order.from_solver(arr))
             except AttributeError:
-                sol.__dict__[name] = order.from_solver(np.asarray(val))
+                sol.__dict__[name] = order.from_solver(arr)
 
 
 def _reusable(reuse, modes, atol_vec):

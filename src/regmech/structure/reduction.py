@@ -35,7 +35,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import networkx as nx
 import numpy as np
 
 from ..component import Body, Device, Ground
@@ -104,16 +103,11 @@ class ModelEditor:
             new.model = None
             m.components[new.name] = new
             new.model = m
-            m.graph.add_node(new.name, kind="component", component=new)
-            for fl in new.flange_list:
-                m.graph.add_node(fl.full_name, kind="flange", flange=fl)
-                m.graph.add_edge(new.name, fl.full_name, kind="owns")
             new_of[cname] = new
         for comp in self.extra:
             m.add(comp)
-        for u, v, d in self.src.graph.edges(data=True):
-            if d["kind"] != "connect":
-                continue
+        for fa, fb in self.src.links():
+            u, v = fa.full_name, fb.full_name
             (cu, fu), (cv, fv) = u.rsplit(".", 1), v.rsplit(".", 1)
             if cu in new_of and cv in new_of and frozenset((u, v)) not in self.dropped_links:
                 try:
@@ -153,6 +147,8 @@ def output_component(model, name: str):
 def node_graph(model):
     """Nodes as graph vertices, devices as hyper-edges (one edge per pair of its nodes)."""
     nodes, node_of = build_nodes(model)
+    import networkx as nx
+
     g = nx.MultiGraph()
     g.add_nodes_from(n.index for n in nodes)
     for comp in model.components.values():
@@ -276,6 +272,8 @@ def rigidify(model, outputs, band_hz, factor=10.0):
     nodes, node_of, g = node_graph(model)
     needed = {output_component(model, o) for o in outputs}
     ed, actions = ModelEditor(model), []
+    import networkx as nx
+
     groups = nx.utils.UnionFind()
     for comp in model.components.values():
         if isinstance(comp, Device) and comp.device_kind() == "rigid":

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
-from ..component import Device
+from ..component import Device, Ground
 from ..errors import ModelError, StructureError
 from .pantelides import min_weight_column_matching, pantelides, structural_matching
 from .regularity import check_model
@@ -117,6 +117,16 @@ _FIX_GROUND = ("a mass connected to a Fixed stays at the ground's position at re
 _FIX_POINT = "masses joined at one point share one {what}: give it on one of them only"
 
 
+def _pin_label(who, level: int) -> str:
+    """The label of a fixed start value in ``_node_starts``: a mass, a ground's position, a ground at rest."""
+    if isinstance(who, tuple):
+        g = who[0]
+        return f"{type(g).__name__} '{g.name}' (at rest)"
+    if isinstance(who, Ground):
+        return f"{type(who).__name__} '{who.name}' ({who.position_param}={who.position:.10g})"
+    return start_label(who, level)
+
+
 def _node_starts(node: Node) -> tuple[list[float], list[tuple[int, str, str]]]:
     """Fixed start (position, velocity) of a node (NaN: free) and its contradictions.
 
@@ -126,18 +136,18 @@ def _node_starts(node: Node) -> tuple[list[float], list[tuple[int, str, str]]]:
     """
     out, problems = [np.nan, np.nan], []
     for level in (0, 1):
-        pins = [(start_label(b, level), b.start[level]) for b in node.bodies if b.start[level] is not None]
+        # (who, value): who is a mass, a ground, or (ground, None) for a ground holding a speed at rest;
+        # labels are written only for a contradiction (a model has 100,000 masses, rarely one conflict)
+        pins = [(b, b.start[level]) for b in node.bodies if b.start[level] is not None]
         if node.grounds and level == 0:
-            pins = [(f"{type(g).__name__} '{g.name}' ({g.position_param}={g.position:.10g})", g.position)
-                    for g in node.grounds] + pins
+            pins = [(g, g.position) for g in node.grounds] + pins
         elif node.grounds and pins:
-            g = node.grounds[0]
-            pins.insert(0, (f"{type(g).__name__} '{g.name}' (at rest)", 0.0))
+            pins.insert(0, ((node.grounds[0], None), 0.0))
         if not pins:
             continue
         ref = pins[0][1]
         if any(abs(v - ref) > START_RTOL * max(1.0, abs(v), abs(ref)) for _, v in pins[1:]):
-            labels = ", ".join(label for label, _ in pins)
+            labels = ", ".join(_pin_label(who, level) for who, _ in pins)
             if node.grounds:
                 problems.append((level, f"{labels} meet at one point ({node.label()}) but disagree", _FIX_GROUND))
             else:
