@@ -11,13 +11,14 @@ from .errors import (AccuracyError, ChatteringError, ModelError, ParameterError,
                      RegularityWarning, SimulationError, SimulationTimeout, StructureError,
                      UnknownFlangeError, UnknownSignalError)
 from .model import Model
+from .io import load_result
 from .result import Event, Result, Stats
 from .scene import Scene
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Model", "Scene", "Result", "Event", "Stats", "signals",
+    "Model", "Scene", "Result", "Event", "Stats", "signals", "load_result",
     "Component", "Body", "Ground", "Device", "Param", "Subsystem",
     "RegmechError", "ParameterError", "ModelError", "UnknownFlangeError", "RegularityError",
     "UnknownSignalError", "StructureError", "SimulationError", "SimulationTimeout", "ChatteringError",

@@ -316,5 +316,12 @@ class Result:
                 plt.close(fig)
         return ax
 
+    def save(self, path, names=None):
+        """Write the result to a MATLAB ``.mat`` file (time, every signal in SI with its name and unit,
+        events, solver statistics, model name, regmech version; layout in ``regmech.io``); read it back
+        with ``regmech.load_result(path)``. ``names``: only these signals. Returns the path."""
+        from .io import save_result
+        return save_result(self, path, names)
+
     def __repr__(self):
         return f"<Result {self.model_name}: {len(self.t)} points, {len(self.events)} events, {self.stats}>"

@@ -30,7 +30,7 @@ LAYERS = [
     {"solvers"},
     {"analysis", "bench", "study", "cli", "scene", "sweep", "library", "__root__"},
 ]
-CORE = {"errors", "_numbers", "ports", "modes", "units", "signals", "component", "result", "report"}
+CORE = {"errors", "_numbers", "ports", "modes", "units", "signals", "component", "result", "report", "io"}
 NEVER_COMPONENTS = {"compile", "hybrid", "solvers"}
 RANK = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
 
