@@ -242,10 +242,112 @@ class Model:
                         **options)
 
     def linearize(self, t: float = 0.0, modes=None, at=None, **options):
-        """Structural-matrix form ``M q'' + B q' + C q = W u`` (see ``compile.linear.linearize``;
-        ``options``: e.g. ``sparse=True``)."""
+        """Structural-matrix form ``M q'' + B q' + C q = W u`` about an operating point (see
+        ``compile.linear.linearize``; ``options``: e.g. ``sparse=True``).
+
+        ``at``: None (the scene's start values at ``t``), a dict of mass positions and speeds, a tuple
+        ``(x, v)``, or a ``Result`` of a simulation of this model (also one loaded from a file): then the
+        operating point is that run at time ``t`` [s] -- the positions and speeds of every mass and the
+        friction modes the run had there (``res.at``; at an event instant, those after the event), made
+        consistent with the constraints of those modes. ``modes`` given with a result overrides the
+        run's mode of the devices it names. The scene's start values play no part then, so a clutch
+        that is Stuck at ``t`` in the run is linearised Stuck even if the scene starts it Free.
+        ``modes`` without ``at``: the start values, and when the start speeds contradict the modes asked
+        for (two start speeds across a clutch asked Stuck) the closest speeds that obey them (a
+        mass-weighted impulse, momentum kept), with a ``UserWarning`` naming the conflict.
+        """
         from .compile.linear import linearize
-        return linearize(self.compile(), t=t, modes=modes, at=at, **options)
+        from .result import Result
+        c = self.compile()
+        if isinstance(at, Result):
+            modes, at = _run_point(c, at, t, modes)
+        elif at is None and modes is not None:
+            at = _start_point(c, t, modes)
+        return linearize(c, t=t, modes=modes, at=at, **options)
 
     def __repr__(self) -> str:
         return f"Model({self.name!r}, {len(self.components)} components)"
+
+
+def _run_point(c, res, t, modes):
+    """(friction modes per row, (x, v)) of compiled system ``c`` at time ``t`` of run ``res``.
+
+    The positions ``x`` and speeds ``v`` of the coordinates are the run's mass signals interpolated
+    at ``t`` (``res.at``), projected onto the constraints of the modes (linear interpolation between
+    two consistent output points keeps linear constraints; the projection removes the solver's
+    tolerance-sized residue). The modes are the run's ``<device>.mode`` signals at ``t`` (the value after
+    an event at an event instant), overridden by ``modes`` (a dict device -> mode, or one mode per
+    friction row)."""
+    import numpy as np
+    from .compile.linear import _mode_code, _resolve_modes
+    from .errors import ParameterError
+
+    st = c.structure
+    t = float(t)
+    t0, t1 = float(res.t[0]), float(res.t[-1])
+    if not (np.isfinite(t) and t0 <= t <= t1):
+        raise ParameterError(f"linearize(at=res, t={t!r}): t must lie in the run of model '{res.model_name}', "
+                             f"[{t0:g}, {t1:g}] s; simulate further or pick a time inside it")
+    x, v = np.zeros(c.n), np.zeros(c.n)
+    for k, node in enumerate(st.coord_node):
+        body = node.bodies[0]
+        pn, wn, _, _ = body.var_names()
+        for arr, name in ((x, f"{body.name}.{pn}"), (v, f"{body.name}.{wn}")):
+            if name not in res:
+                raise ParameterError(f"linearize(at=res): the result (model '{res.model_name}') has no signal "
+                                     f"'{name}' of model '{c.model.name}'; pass a result of a run of this model "
+                                     f"(saved with all its signals)")
+            arr[k] = res.at(name, t)
+    run_modes = np.asarray(c.modes0, int).copy()
+    for j, row in enumerate(st.friction):
+        name = f"{row.device.name}.mode"
+        if name not in res:
+            raise ParameterError(f"linearize(at=res): the result has no signal '{name}' (the mode of friction "
+                                 f"device '{row.device.name}'); pass a result of a run of model '{c.model.name}'")
+        run_modes[j] = int(round(res.at(name, t)))
+    traj = getattr(res, "_traj", None)
+    if getattr(traj, "c", None) is c and getattr(traj, "modes", None) is not None and len(traj.t):
+        # a live run of this very system keeps the mode of every friction row (the signal holds one per
+        # device): the row at or after the event at t
+        i = int(np.clip(np.searchsorted(traj.t, t, side="right") - 1, 0, len(traj.t) - 1))
+        run_modes = np.asarray(traj.modes[i], int).copy()
+    if isinstance(modes, dict):
+        names = [r.device.name for r in st.friction]
+        _resolve_modes(c, modes)                   # names and mode codes checked there
+        for name, mode in modes.items():
+            for j, nm in enumerate(names):
+                if nm == name:
+                    run_modes[j] = _mode_code(name, mode)
+    elif modes is not None:
+        run_modes = _resolve_modes(c, modes)
+    x, v = c.project(t, x, v, None, None, run_modes)
+    return run_modes, (x, v)
+
+
+def _start_point(c, t, modes):
+    """None (``linearize`` takes the start values) or, when the scene's start speeds contradict the
+    friction ``modes`` asked for, the consistent (x, v) nearest them: start positions kept, start speeds
+    as guesses (``CompiledSystem.project``: a mass-weighted correction, i.e. the impulse that makes the
+    stuck devices turn together and keeps the momentum), with a warning that says so."""
+    import warnings
+    import numpy as np
+    from .compile.linear import _resolve_modes
+    from .errors import StructureError
+
+    arr = _resolve_modes(c, modes)
+    try:
+        c.initial_y(float(t), arr)
+        return None
+    except StructureError as exc:
+        if "inconsistent start velocities" not in str(exc):
+            raise
+        reason = str(exc)
+    st = c.structure
+    guess_x = np.where(np.isfinite(st.start_pos), st.start_pos, 0.0)
+    guess_v = np.where(np.isfinite(st.start_vel), st.start_vel, 0.0)
+    x, v = c.project(float(t), guess_x, guess_v, st.start_pos, None, arr)
+    warnings.warn(f"linearize(modes=...): the start speeds of model '{c.model.name}' contradict the modes asked "
+                  f"for ({reason.split('. Fix:')[0]}); linearised at the nearest speeds that obey them "
+                  f"(mass-weighted, momentum kept). To linearise where a run is, pass at=res "
+                  f"(m.linearize(at=m.simulate(T), t=T))", UserWarning, stacklevel=3)
+    return x, v

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -22,9 +23,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene name (regmech scenes lists them)")
     p.add_argument("--k", type=int, default=None, help="number of lowest modes (default: all)")
     p.add_argument("--out", default=None, help="folder for CSV tables and PNG plots")
-    p.add_argument("--t", type=float, default=0.0, help="time of the operating point [s] (default 0)")
+    p.add_argument("--t", type=float, default=0.0,
+                   help="time of the operating point [s] (default 0: the scene's start values); > 0: the scene "
+                        "is simulated to that instant and linearised where the run is (state and friction modes)")
     p.add_argument("--mode", action="append", default=[], metavar="DEVICE=MODE",
-                   help="friction mode at the operating point, e.g. clutch1=Stuck (repeatable)")
+                   help="friction mode at the operating point, e.g. clutch1=Stuck (repeatable; overrides the "
+                        "run's or the start's mode of that device)")
     p.add_argument("--fmax", type=float, default=None, help="upper frequency of the response plot [Hz]")
     return p
 
@@ -48,9 +52,20 @@ def modes_main(argv: list[str]) -> int:
         return 2
     try:
         model = builder()
-        lin = model.linearize(t=args.t, modes=modes)
+        run = None
+        if args.t < 0 or not np.isfinite(args.t):
+            print(f"regmech modes: --t is a time >= 0 [s], got {args.t}", file=sys.stderr)
+            return 2
+        if args.t > 0:
+            run = model.simulate(args.t)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            lin = model.linearize(t=args.t, modes=modes, at=run)
         result = modal(lin, k=args.k)
         print(dof_line(model.name, lin))
+        print(operating_line(lin, run, modes))
+        for w in caught:
+            print(f"note: {w.message}")
         print()
         print(result)
         if args.out:
@@ -64,6 +79,33 @@ def modes_main(argv: list[str]) -> int:
         print(f"regmech modes: {exc}", file=sys.stderr)
         return 2
     return 0
+
+
+def operating_line(lin, run=None, asked=None) -> str:
+    """Where the model was linearised: the start values or the run to ``lin.t`` (its solver), and the
+    friction mode of every friction device there (with the time it entered that mode in the run, and
+    ``(asked)`` for modes given with ``--mode``)."""
+    from ..modes import MODE_NAMES
+    where = (f"operating point: the run to t={lin.t:g} s ({run.stats.solver}, {len(run.events)} mode changes)"
+             if run is not None else f"operating point: the start values at t={lin.t:g} s")
+    rows = lin.compiled.structure.friction
+    if not rows:
+        return where + "; no friction devices"
+    parts, seen = [], set()
+    for row, code in zip(rows, lin.modes):
+        name = row.device.name
+        if name in seen:
+            continue
+        seen.add(name)
+        text = f"{name} {MODE_NAMES.get(int(code), code)}"
+        if asked and name in asked:
+            text += " (asked)"
+        elif run is not None:
+            since = [ev.t for ev in run.events if ev.component == name and ev.kind == "mode" and ev.t <= lin.t]
+            if since:
+                text += f" (since {since[-1]:.4g} s)"
+        parts.append(text)
+    return where + "; friction modes: " + ", ".join(parts)
 
 
 def dof_line(name: str, lin) -> str:

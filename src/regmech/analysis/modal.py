@@ -196,7 +196,25 @@ class ModalResult:
         from .sensitivity import sensitivities
         return sensitivities(self)
 
+    @property
+    def all_rigid(self) -> bool:
+        """Every mode is a rigid-body mode (0 Hz): nothing elastic joins the masses at this operating point."""
+        return bool(len(self.rigid)) and bool(np.all(self.rigid))
+
+    def rigid_note(self) -> str:
+        """One sentence for a model whose modes are all rigid-body modes (0 Hz): what that means."""
+        n = len(self.rigid)
+        masses = self.lin.mass_names
+        shown = ", ".join(masses[:8]) + (f", ... ({len(masses)})" if len(masses) > 8 else "")
+        coords = ", ".join(self.lin.coords[:8]) + (", ..." if n > 8 else "")
+        return (f"all {n} mode(s) are rigid-body modes (0 Hz): no spring or shaft joins the masses ({shown}) "
+                f"at this operating point, so nothing vibrates; they move in {n} rigid group(s), on the "
+                f"coordinates {coords}, freely or against friction and damping only. Natural frequencies "
+                f"need a compliance (a Spring, a Shaft, a tyre) between masses")
+
     def __str__(self) -> str:
+        if self.all_rigid:
+            return self.rigid_note()
         return "\n\n".join([str(self.frequency_table()), str(self.damped.table()), str(self.table())])
 
 
