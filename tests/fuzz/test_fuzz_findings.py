@@ -5,6 +5,8 @@ Tests of findings that are still open are marked ``xfail(strict=True)``: they fa
 their fix turns them into an unexpected pass, at which point the mark goes.
 """
 
+import math
+
 import numpy as np
 import pytest
 
@@ -45,10 +47,14 @@ def test_lossy_gear_never_supplies_power(case):
     assert p.min() >= -1e-6 * np.abs(p).max(), (p.min(), res.t[np.argmin(p)])
 
 
-def _servo_and_clutch():
+def _servo_and_clutch(callable_reference=False):
     m = rm.Model("missed_pair")
     J1 = m.add(Inertia("J1", J=0.0152))
-    servo = m.add(Position("servo", phi_ref=Sine(amplitude=0.1436, freq_hz=26.18, phase=0.7417)))
+    if callable_reference:       # the same motion, with no period known to the solver
+        ref = lambda t: 0.1436 * math.sin(2 * math.pi * 26.18 * t + 0.7417)  # noqa: E731
+    else:
+        ref = Sine(amplitude=0.1436, freq_hz=26.18, phase=0.7417)
+    servo = m.add(Position("servo", phi_ref=ref))
     clutch = m.add(Clutch("clutch", mu=0.8906, peak=1.521, cgeo=0.03512, fn_max=25.03, f_normalized=0.3))
     J3 = m.add(Inertia("J3", J=2.861, w0=0.0))
     m.connect(servo.flange, J1.flange_a)
@@ -57,17 +63,19 @@ def _servo_and_clutch():
     return m
 
 
-@pytest.mark.parametrize("dt_out", [5e-4, 0.05, 0.2])
+@pytest.mark.parametrize("signal, dt_out", [("sine", 5e-4), ("sine", 0.05), ("sine", 0.2), ("callable", 0.05)])
 @pytest.mark.parametrize("solver", ["scipy:DOP853", "scipy:RK45", "scipy:Radau"])
-def test_ode_form_solvers_find_friction_events_within_a_step(solver, dt_out):
+def test_ode_form_solvers_find_friction_events_within_a_step(solver, signal, dt_out):
     """Seed 31 (finding F2): a servo shakes J1 at 26 Hz; the clutch to the heavy J3 slips forward and backward
     (11 mode changes in 0.2 s under ida). J3 moves under a constant friction torque, its motion is a
     polynomial, so the step control took 6 steps over the run and saw one event when only the step ends were
     checked: J3.phi ended 21 times too large (dt_out = 0.2). With output instants as the only interior checks,
     a fine dt_out found the events but the run was stopped as diverged (the roughness test of
-    ``solvers.divergence`` read the kinks of J3's tiny motion at every reversal as an instability)."""
-    m = _servo_and_clutch()
-    ref = m.simulate(0.2, dt_out=5e-4, solver="ida", rtol=1e-10)
+    ``solvers.divergence`` read the kinks of J3's tiny motion at every reversal as an instability).
+    With a Sine the scan reads the guards 8 times per period; with a callable (no period known) the quarter-step
+    probes and the refinement where the samples move by more than their distance from zero find them."""
+    m = _servo_and_clutch(signal == "callable")
+    ref = _servo_and_clutch().simulate(0.2, dt_out=5e-4, solver="ida", rtol=1e-10)
     res = m.simulate(0.2, dt_out=dt_out, solver=solver, rtol=1e-8)
     assert len(ref.events) == 11
     assert [(e.component, e.new_mode) for e in res.events] == [(e.component, e.new_mode) for e in ref.events]
