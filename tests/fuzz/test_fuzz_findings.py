@@ -6,6 +6,7 @@ their fix turns them into an unexpected pass, at which point the mark goes.
 """
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -112,6 +113,9 @@ def test_event_scan_finds_a_dip_between_probes():
     reads = _scan_reads(lambda s: 0.3 * np.cos(2 * np.pi * 3 * s) + 0.28, t)   # dips at 1/6, 1/2, 5/6 s
     assert reads and 0.3 * np.cos(2 * np.pi * 3 * reads[-1]) + 0.28 <= 0
     assert _scan_reads(lambda s: 1.0 + 0.1 * np.sin(3 * s), t) == []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # a straight guard (zero curvature) warns about nothing
+        assert _scan_reads(lambda s: 2.0 - s, t) == []
     assert _scan_reads(lambda s: 1.0 - 0.9 * s, [0.0, 0.5, 1.0], min_gap=0.6) == []
 
 

@@ -573,13 +573,13 @@ class EventWatch:
                 if i < 0 or i + 2 >= len(ts):
                     continue
                 x, f = ts[i:i + 3], g[i:i + 3]
-                d1 = (f[1] - f[0]) / (x[1] - x[0])
-                d2 = (f[2] - f[1]) / (x[2] - x[1])
-                curv = (d2 - d1) / (x[2] - x[0])
-                with np.errstate(divide="ignore", invalid="ignore"):
+                with np.errstate(all="ignore"):      # a straight guard (curv = 0) gives inf/NaN: no candidate
+                    d1 = (f[1] - f[0]) / (x[1] - x[0])
+                    d2 = (f[2] - f[1]) / (x[2] - x[1])
+                    curv = (d2 - d1) / (x[2] - x[0])
                     xv = 0.5 * (x[0] + x[1]) - d1 / (2 * curv)
-                fv = f[0] + d1 * (xv - x[0]) + curv * (xv - x[0]) * (xv - x[1])
-                cand = (f > 0).all(axis=0) & (curv > 0) & (xv > lo) & (xv < hi) & (fv <= 0)
+                    fv = f[0] + d1 * (xv - x[0]) + curv * (xv - x[0]) * (xv - x[1])
+                    cand = (f > 0).all(axis=0) & (curv > 0) & (xv > lo) & (xv < hi) & (fv <= 0)
                 if cand.any():
                     v = float(xv[np.argmax(cand)])
                     if min(abs(ts - v)) <= close:
@@ -588,7 +588,9 @@ class EventWatch:
                         return v
             if hi - lo > min_gap:
                 fl, fh = g[j], g[j + 1]
-                if ((fl > 0) & (fh > 0) & (np.abs(fh - fl) > np.minimum(fl, fh))).any():
+                with np.errstate(all="ignore"):
+                    moved = (fl > 0) & (fh > 0) & (np.abs(fh - fl) > np.minimum(fl, fh))
+                if moved.any():
                     return float(0.5 * (lo + hi))
         return None
 
