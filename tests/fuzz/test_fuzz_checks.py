@@ -81,6 +81,7 @@ class _Tampered:
 
     def __init__(self, res, **over):
         self._res, self._over, self.t = res, over, res.t
+        self.stats = res.stats
 
     @property
     def names(self):
@@ -164,4 +165,30 @@ def test_evaluate_passes_a_plain_model_on_every_run():
     v = evaluate(spec)
     assert v.status == "pass", [f.detail for f in v.findings]
     assert {o.label: o.status for o in v.runs} == {"ida": "ok", "dop853": "ok", "ida_ref": "ok",
-                                                   "dop853_ref": "ok", "expm": "ok"}
+                                                   "dop853_ref": "ok", "expm": "ok", "default": "ok"}
+    default = next(o for o in v.runs if o.label == "default")
+    assert default.claim_rel == 1e-3 and default.metrics["contract_error"] <= 1e-3
+
+
+def test_default_call_is_held_to_the_default_accuracy():
+    """``default_accuracy``: the default call m.simulate(t_end, dt_out) (auto, accuracy 1e-3) against the tight
+    reference in the contract's measure (error over the range of the reference's signals of a kind); a run
+    off by 2e-3 of the range of the angles is a broken promise, the real default run is not."""
+    from regmech.solvers.accuracy import DEFAULT_ACCURACY
+    m = _damped_model()
+    spec = ModelSpec("damped", [], 2.0, 1e-3, [])
+    default = m.simulate(2.0, dt_out=1e-3)
+    ref = m.simulate(2.0, dt_out=1e-3, solver="scipy:DOP853", rtol=1e-10)
+    ref2 = m.simulate(2.0, dt_out=1e-3, solver="ida", rtol=1e-10)
+
+    def outcomes():
+        return [fuzz.RunOutcome("default", "auto", {}, "ok", claim_rel=DEFAULT_ACCURACY),
+                fuzz.RunOutcome("dop853_ref", "scipy:DOP853", {"rtol": 1e-10}, "ok", claim_rel=1e-6),
+                fuzz.RunOutcome("ida_ref", "ida", {"rtol": 1e-10}, "ok", claim_rel=1e-6)]
+    outs = outcomes()
+    assert fuzz.default_accuracy(outs, {"default": default, "dop853_ref": ref, "ida_ref": ref2}, m, spec) == []
+    assert outs[0].metrics["contract_error"] <= DEFAULT_ACCURACY
+    assert outs[0].metrics["reference_error"] < 1e-6
+    off = _Tampered(default, **{"J.phi": default["J.phi"] + 2e-3 * np.ptp(ref["J.phi"])})
+    found = fuzz.default_accuracy(outcomes(), {"default": off, "dop853_ref": ref, "ida_ref": ref2}, m, spec)
+    assert [f.kind for f in found] == ["default-accuracy"] and found[0].detail.startswith("J.phi")

@@ -39,3 +39,20 @@ def test_a_cell_is_measured_against_the_closed_form_and_reported(tmp_path):
     assert [(r.solver, r.status) for r in back] == [(r.solver, r.status) for r in records]
     text = C.calibration_markdown(back, [case], {"osc": ref}, {"cpu": "test"}, 60.0, 1.0, "cal.png")
     assert "| `ida` | 1 | 1 | **0** |" in text and "closed form" in text
+
+
+def test_random_calibration_runs_and_reports_a_fuzz_model(tmp_path):
+    """The random part of the calibration (``bench_calibration.py --random N``): a fuzz model as a case, its
+    reference cached under a key that carries the model's source, one cell run and judged, the report."""
+    from regmech.bench import calibration as C
+    cases = C.random_cases(1, 7)
+    assert cases[0].key.startswith("fuzz_7_") and cases[0].group == "random"
+    csv_path = tmp_path / "random.csv"
+    recs = C.run_random(cases, csv_path, limit=120.0, cache_dir=tmp_path / "cache", log=lambda m: None,
+                        cells=(("ida", 1e-2),))
+    assert [(r.solver, r.accuracy) for r in recs] == [("ida", 1e-2)]
+    assert recs[0].status == "met" and recs[0].achieved <= 1e-2
+    again = C.run_random(cases, csv_path, cache_dir=tmp_path / "cache", log=lambda m: None, cells=(("ida", 1e-2),))
+    assert [(r.case, r.solver, r.status) for r in again] == [(r.case, r.solver, r.status) for r in recs]  # resumed
+    md = C.random_markdown(recs, cases, {}, 120.0, 0.0, "test", cache_dir=tmp_path / "cache")
+    assert "| `ida` | 1e-02 | 1 | 1 | **0** |" in md and "None." in md

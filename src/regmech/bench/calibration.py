@@ -169,19 +169,19 @@ def _measure(values, ref_values, labels):
     return float(d[k, i]), labels[int(i)].signal
 
 
-def _cache_path(case, cache_dir) -> Path:
+def _cache_path(case, cache_dir, methods=REFERENCE_METHODS) -> Path:
     import regmech
     spec = json.dumps({"key": case.key, "t_end": case.t_end, "dt_out": case.dt_out, "exact": case.exact is not None,
-                       "methods": [[s, sorted(o.items())] for s, o in REFERENCE_METHODS],
+                       "methods": [[s, sorted(o.items())] for s, o in methods],
                        "regmech": regmech.__version__}, sort_keys=True)
     return Path(cache_dir) / f"cal-{case.key}-{hashlib.sha256(spec.encode()).hexdigest()[:16]}.npz"
 
 
-def reference(case: CalCase, cache_dir=None, limit: float = 300.0, log=print) -> Reference:
+def reference(case: CalCase, cache_dir=None, limit: float = 300.0, log=print, methods=REFERENCE_METHODS) -> Reference:
     from regmech.solvers.accuracy import state_matrix
     from .reference import default_cache_dir
     cache_dir = default_cache_dir() if cache_dir is None else Path(cache_dir)
-    path = _cache_path(case, cache_dir)
+    path = _cache_path(case, cache_dir, methods)
     if path.exists():
         with np.load(path, allow_pickle=False) as d:
             meta = json.loads(str(d["meta"]))
@@ -198,7 +198,7 @@ def reference(case: CalCase, cache_dir=None, limit: float = 300.0, log=print) ->
             ref = Reference(case.key, signals, np.column_stack([ans[s] for s in signals]), "closed form", 0.0)
     if ref is None:
         got = []
-        for solver, opts in REFERENCE_METHODS:
+        for solver, opts in methods:
             if len(got) == 2:
                 break
             t0 = time.perf_counter()
@@ -619,6 +619,137 @@ def run_all(out_dir, csv_path=None, cases=None, solvers=None, limit=30.0, cache_
                                     command=command)
 
 
+# ------------------------------------------------------------------------------ random drivetrains
+#: the cells of the random calibration: (solver, accuracy); auto at 1e-3 is the default call
+RANDOM_CELLS = (("auto", 1e-2), ("auto", 1e-3), ("auto", 1e-4), ("ida", 1e-2), ("ida", 1e-4),
+                ("scipy:DOP853", 1e-2), ("scipy:DOP853", 1e-4))
+#: references of the random drivetrains: two methods of different families at tolerances 1e5 below the
+#: tightest accuracy asked (their difference, the resolution, is reported per case)
+RANDOM_REFERENCE_METHODS = (("scipy:DOP853", {"rtol": 1e-10, "atol": 1e-12, "max_steps": 400_000}),
+                            ("ida", {"rtol": 1e-10, "atol": 1e-12}))
+
+
+def random_cases(n: int = 100, first_seed: int = 0) -> list[CalCase]:
+    """``n`` random regular drivetrains of the fuzz generator (``regmech.bench.fuzz.generate_seed``, seeds
+    ``first_seed`` ..): every component family, parameters across decades, the fuzz campaign's t_end and
+    output grid. The key carries a hash of the model's source, so a changed generator never reuses a cached
+    reference."""
+    from .fuzz import generate_seed
+    out = []
+    for seed in range(first_seed, first_seed + n):
+        spec = generate_seed(seed)
+        tag = hashlib.sha256("\n".join(spec.lines).encode()).hexdigest()[:8]
+        out.append(CalCase(f"fuzz_{seed}_{tag}", "random", ", ".join(spec.families), spec.build, spec.t_end,
+                           spec.dt_out))
+    return out
+
+
+def run_random(cases, csv_path: Path, limit: float = 30.0, cache_dir=None, log=print, merge=True,
+               cells=RANDOM_CELLS) -> list[CalRecord]:
+    """Every (case, solver, accuracy) of ``cells`` not yet in ``csv_path``; a case without a reference (both
+    reference methods failed or hit the limit) is recorded as such (solver ``reference``, status ``limit``
+    or ``refused``) and skipped."""
+    records = load_records(csv_path) if merge else []
+    done = {(r.case, r.solver, r.accuracy) for r in records}
+    for case in cases:
+        if all((case.key, s, a) in done for s, a in cells) or (case.key, "reference", 0.0) in done:
+            continue
+        try:
+            ref = reference(case, cache_dir, limit=4 * limit, log=log, methods=RANDOM_REFERENCE_METHODS)
+        except Exception as exc:        # noqa: BLE001 - no reference: the case is not judged
+            rec = CalRecord(case.key, case.group, "reference", 0.0, "limit", reason=first_line(exc, 200))
+            records.append(rec)
+            save_records(records, csv_path)
+            log(f"{case.key}: no reference ({rec.reason})")
+            continue
+        for solver, acc in cells:
+            if (case.key, solver, acc) in done:
+                continue
+            rec = run_cell(case, ref, solver, acc, limit)
+            log(f"{case.key:24s} {solver:14s} {acc:7.0e} {rec.status:8s} wall {rec.wall:7.3f} s  est "
+                f"{rec.estimate:8.2g} achieved {rec.achieved:8.2g} {rec.used} {rec.settings} "
+                f"{first_line(rec.reason, 120) if rec.status != 'met' else ''}")
+            records.append(rec)
+            save_records(records, csv_path)
+    return records
+
+
+def random_markdown(records, cases, machine: dict, limit: float, wall_total: float, command: str,
+                    cache_dir=None) -> str:
+    """The report of the random calibration (``calibration_random.md``)."""
+    from .machine import machine_line
+    keys = {c.key for c in cases}
+    records = [r for r in records if r.case in keys]
+    no_ref = [r for r in records if r.solver == "reference"]
+    runs = [r for r in records if r.solver != "reference"]
+    judged = sorted({r.case for r in runs})
+    lines = ["# Calibration on random drivetrains", "",
+             f"Machine: {machine_line(machine)}. Command: `{command}`; time limit {limit:g} s per run; total "
+             f"{wall_total / 60:.1f} min (shared machine: times vary by up to 2x).", "",
+             f"{len(cases)} random regular drivetrains of the fuzz generator (`regmech.bench.fuzz.generate_seed`, "
+             f"seeds {min(int(k.split('_')[1]) for k in keys)} to {max(int(k.split('_')[1]) for k in keys)}: every "
+             "component family, parameters across decades, friction, lossy gears, tyres, prescribed motions); each "
+             "asked for `accuracy=a` with `auto` (a = 1e-3 is the default call `m.simulate(t_end, dt_out)`), `ida` and "
+             "`scipy:DOP853`, and the returned run compared with a reference (scipy:DOP853 at rtol 1e-10, cross-checked "
+             "by ida at rtol 1e-10) in the contract's measure (max over the output instants and the state signals "
+             "of the error over the range of the reference's signals of that kind). **broken**: achieved error > a; "
+             f"**refused**: a regmech error; **limit**: the time limit. {len(judged)} models judged, "
+             f"{len(no_ref)} without a reference (both reference runs failed or hit their limit).", "",
+             "| solver | a | runs | met | broken | refused | limit | crash | median estimate / a | max achieved / a | "
+             "median time with / without the check |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for solver, acc in RANDOM_CELLS:
+        rs = [r for r in runs if r.solver == solver and r.accuracy == acc]
+        if not rs:
+            continue
+        ok = [r for r in rs if r.status in ("met", "broken")]
+        c = {k: sum(r.status == k for r in rs) for k in ("met", "broken", "refused", "limit", "crash")}
+        lines.append(f"| `{solver}`{' (default call)' if solver == 'auto' and acc == 1e-3 else ''} | {acc:.0e} | "
+                     f"{len(rs)} | {c['met']} | **{c['broken']}** | {c['refused']} | {c['limit']} | {c['crash']} | "
+                     f"{_g(_median([r.estimate / r.accuracy for r in ok]))} | "
+                     f"{_g(max((r.achieved / r.accuracy for r in ok), default=math.nan))} | "
+                     f"{_g(_median([r.wall / r.main for r in ok if r.main > 0]), '{:.2f}')} |")
+    used = {}
+    for r in runs:
+        if r.solver == "auto" and r.status in ("met", "broken"):
+            used[r.used] = used.get(r.used, 0) + 1
+    lines += ["", "*time with / without*: wall time of the whole contract (every run it made) over that of the "
+              "returned run alone. auto chose: " + ", ".join(f"`{k}` {v}" for k, v in sorted(used.items(),
+                                                                                         key=lambda kv: -kv[1]))
+              + ".", ""]
+    ref_kinds = {}
+    for r in runs:
+        if r.status == "refused":
+            kind = r.reason.split(":")[0][:40]
+            ref_kinds.setdefault((r.solver, kind), []).append(r.case.split("_")[1])
+    if ref_kinds:
+        lines += ["## Refusals", "", "| solver | error | runs | seeds (first 8) |", "|---|---|---|---|"]
+        for (solver, kind), seeds in sorted(ref_kinds.items(), key=lambda kv: -len(kv[1])):
+            lines.append(f"| `{solver}` | {kind} | {len(seeds)} | {', '.join(sorted(set(seeds), key=int)[:8])} |")
+        lines.append("")
+    bad = [r for r in runs if r.status in ("broken", "crash")]
+    lines += ["## Broken promises and crashes", ""]
+    if not bad:
+        lines += ["None.", ""]
+    else:
+        lines += ["| case | solver | a | estimate | achieved | worst | path | settings, reason |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in bad:
+            lines.append(f"| {r.case} | `{r.solver}` | {r.accuracy:.0e} | {_g(r.estimate)} | {_g(r.achieved)} | "
+                         f"{r.worst} | {r.same_path} | {r.settings} {r.reason[:120]} |")
+        lines.append("")
+    res = []
+    for case in cases:
+        try:
+            res.append(reference(case, cache_dir, log=lambda m: None, methods=RANDOM_REFERENCE_METHODS).resolution)
+        except Exception:       # noqa: BLE001 - reported as missing above
+            pass
+    finite = [x for x in res if math.isfinite(x)]
+    if finite:
+        lines += [f"Reference resolution (the two references' difference, contract measure): median "
+                  f"{_g(float(np.median(finite)))}, max {_g(max(finite))} over {len(finite)} models.", ""]
+    return "\n".join(lines) + "\n"
+
+
 __all__ = ["LEVELS", "SOLVERS", "CalCase", "all_cases", "library_cases", "hard_cases", "reference", "run_cell",
            "run_calibration", "auto_cells", "retime", "load_records", "save_records", "write_calibration_report",
-           "run_all"]
+           "run_all", "random_cases", "run_random", "random_markdown", "RANDOM_CELLS"]

@@ -29,8 +29,9 @@ builds it with the public API only. ``spec.build()`` executes exactly that
 source, so ``spec.script()`` is a standalone reproducer of any finding.
 
 **The checks** (``evaluate(spec)``) run the model on every solver of
-``RUNS`` (two at the answer tolerance rtol 1e-8, two tight references, and
-``expm`` when the model is linear between friction events) and return a
+``RUNS`` (two at the answer tolerance rtol 1e-8, two tight references,
+``expm`` when the model is linear between friction events, and the default
+call) and return a
 ``Verdict``: ``pass``, ``refused`` (a solver stopped with a regmech error:
 its class and message) or ``finding`` (a list of ``Finding(kind, detail)``):
 
@@ -59,6 +60,11 @@ its class and message) or ``finding`` (a list of ``Finding(kind, detail)``):
     two solver runs that both returned differ by more than the sum of what
     each claims (``claimed_error``, ``agreement``): by far, by a little, or
     only against the range of a signal that varies little;
+``default-accuracy``
+    the default call (``RUNS`` label ``default``: ``m.simulate(t_end, dt_out)``,
+    solver auto at the default accuracy 1e-3) is further from the tight
+    reference than it promises, in the accuracy contract's measure
+    (``default_accuracy``);
 ``generator``
     the generated model is refused before any solver runs (a bug here).
 """
@@ -731,7 +737,12 @@ RUNS = (
     ("ida_ref", "ida", {"rtol": 1e-10}),
     ("dop853_ref", "scipy:DOP853", {"rtol": 1e-10, "max_steps": 400_000}),
     ("expm", "expm", {"tol": 1e-4}),          # only for models linear between friction events
+    ("default", "auto", {}),                  # the default call m.simulate(t_end, dt_out): ``default_accuracy``
 )
+#: runs judged by the accuracy contract against a reference (``default_accuracy``), not by ``agreement``
+CONTRACT_RUNS = ("default",)
+#: references of ``default_accuracy``, in order of preference
+REFERENCE_RUNS = ("dop853_ref", "ida_ref")
 #: work budget of one run: evaluations of the model equations (residual / right-hand side)
 DEFAULT_MAX_CALLS = 600_000
 
@@ -793,6 +804,9 @@ def claimed_error(label, solver, options, res) -> tuple[float, float]:
     accuracy contract's ``res.stats.error_estimate`` once every solver reports one.
     """
     est = getattr(res.stats, "error_estimate", None)
+    if label in CONTRACT_RUNS:
+        from ..solvers.accuracy import DEFAULT_ACCURACY
+        return float(options.get("accuracy", DEFAULT_ACCURACY)), 0.0
     if "tol" in options and est is not None:
         return max(float(options["tol"]), float(est)), 0.0
     rtol = float(options.get("rtol", 1e-6))
@@ -1058,6 +1072,53 @@ def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
     return findings
 
 
+def contract_error(res, ref, model, spec):
+    """``(error, signal, t)``: the global error of ``res`` against ``ref`` in the accuracy contract's measure
+    (``solvers.accuracy``: max over the output instants and the state signals of the difference over the
+    range of the reference's signals of that kind)."""
+    from ..solvers.accuracy import compare_runs, result_state_labels
+    from ..solvers.common import output_grid
+    labels = result_state_labels(model.compile())
+    est = compare_runs(res, ref, labels, output_grid(0.0, spec.t_end, spec.dt_out))
+    return est.value, est.signal, est.t
+
+
+def default_accuracy(outcomes, results, model, spec) -> list[Finding]:
+    """The default call (``m.simulate(t_end, dt_out)``: solver auto, accuracy ``DEFAULT_ACCURACY``) keeps its
+    promise: its error against the tight reference (``REFERENCE_RUNS``, the first that returned), in the
+    contract's measure (``contract_error``), is at most the accuracy plus the reference's own error (the
+    difference of the two references in the same measure when both returned, else ``CLAIM_PER_RTOL`` times
+    its rtol). Beyond that: the finding ``default-accuracy`` (a broken promise of the default call)."""
+    ok = {o.label: o for o in outcomes if o.status == "ok"}
+    refs = [r for r in REFERENCE_RUNS if r in ok]
+    findings = []
+    for label in CONTRACT_RUNS:
+        if label not in ok or not refs:
+            continue
+        ref = results[refs[0]]
+        if len(refs) > 1:
+            ref_err = contract_error(results[refs[1]], ref, model, spec)[0]
+        else:
+            ref_err = CLAIM_PER_RTOL * float(ok[refs[0]].options.get("rtol", 1e-6))
+        err, signal, t = contract_error(results[label], ref, model, spec)
+        ok[label].metrics["contract_error"] = err
+        ok[label].metrics["reference_error"] = ref_err
+        allowed = ok[label].claim_rel + ref_err
+        if not err <= allowed:
+            res = results[label]
+            findings.append(Finding(
+                "default-accuracy", f"{signal}: the default call ({res.stats.solver}, "
+                f"{_settings_text(res)}) is {err:.3g} of the range of its kind off {refs[0]} at t={t:.6g}; it "
+                f"promises {ok[label].claim_rel:g} (estimate {res.stats.error_estimate}; reference error "
+                f"{ref_err:.2g})", f"{label}/{refs[0]}", signal.split(".")[0]))
+    return findings
+
+
+def _settings_text(res):
+    st = res.stats.extra.get("settings") or {}
+    return ", ".join(f"{k}={v:.3g}" for k, v in st.items()) or "default settings"
+
+
 def _is_linear(model, t_end):
     from ..solvers.expm import nonlinear_components
     try:
@@ -1129,7 +1190,9 @@ def evaluate(spec: ModelSpec, runs=RUNS, max_calls=DEFAULT_MAX_CALLS, time_limit
                 v.findings.append(Finding("crash", f"reading the result: {type(exc).__name__}: {_first_line(exc)}",
                                           label))
     try:
-        v.findings += agreement([o for o in v.runs if o.status == "ok"], results, model, spec, v.pairs)
+        v.findings += agreement([o for o in v.runs if o.status == "ok" and o.label not in CONTRACT_RUNS], results,
+                                model, spec, v.pairs)
+        v.findings += default_accuracy(v.runs, results, model, spec)
     except Exception as exc:        # noqa: BLE001
         v.findings.append(Finding("crash", f"comparing the runs: {type(exc).__name__}: {_first_line(exc)}"))
     v.status = "finding" if v.findings else ("refused" if v.refusals else "pass")
@@ -1138,4 +1201,5 @@ def evaluate(spec: ModelSpec, runs=RUNS, max_calls=DEFAULT_MAX_CALLS, time_limit
 
 
 __all__ = ["FAMILIES", "SIGNALS", "ModelSpec", "generate", "generate_seed", "evaluate", "Verdict", "Finding",
-           "RunOutcome", "RUNS", "claimed_error", "energy_checks", "finite_check", "agreement", "integrate"]
+           "RunOutcome", "RUNS", "claimed_error", "energy_checks", "finite_check", "agreement", "integrate",
+           "contract_error", "default_accuracy"]

@@ -198,6 +198,15 @@ class GrowthWatch:
             self.prefix_max.append(max(self.prefix_max[-1], n))
         return None
 
+    def mode_change(self):
+        """A friction mode change: the law of motion switched, so the curvature ``d_k`` of steps
+        spanning it measures the jump of the acceleration, not an instability. The roughness history
+        restarts (the growth test keeps its history). Found on a servo shaking a light inertia against
+        a clutch to a heavy one at rest (fuzz seed 31): the clutch reverses every 0.019 s, two steps
+        apart, the heavy inertia's tiny motion kinks at every reversal, and 10 steps in a row had
+        ``r_k > 0.5`` while it grew from rest: a correct run was stopped as diverged."""
+        self._recent.clear()
+
     def _roughness(self, t, u, n):
         """Update r_k; a ``Divergence`` when the last ROUGH_STEPS steps were all rough and N grew."""
         recent = self._recent

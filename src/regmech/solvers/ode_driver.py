@@ -45,6 +45,13 @@ from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROU
                          ROUGH_STEPS, GrowthWatch)                                 # is re-exported)
 
 EPS = np.finfo(float).eps
+#: event scan inside a step (``EventWatch.scan``): the guards are read at least every h / SCAN_PROBES,
+#: and at most SCAN_REFINE more times per step where the samples suggest a dip through zero
+SCAN_PROBES = 4
+SCAN_REFINE = 8
+#: ... and at least SCAN_PER_PERIOD times per period of the fastest sine signal, at most SCAN_MAX_PROBES times
+SCAN_PER_PERIOD = 8
+SCAN_MAX_PROBES = 512
 
 
 # ---------------------------------------------------------------------------- problem
@@ -167,7 +174,7 @@ def ode_jacobian_pattern(c) -> sp.csc_matrix:
         Gf = _bool(c.Gf)
         Av = Av + P @ Gf.T @ Gf @ Lv
     Az = PST @ Rrz
-    nkx, nkv, nz = len(c.Kx), len(c.Kv), c.nz
+    nkx, nz = len(c.Kx), c.nz
     blocks = [
         [sp.csr_matrix((nkx, nkx)), Lv[c.Kx], sp.csr_matrix((nkx, nz))],
         [Ax[c.Kv], Av[c.Kv], Az[c.Kv]],
@@ -418,7 +425,7 @@ class _Sink:
 
     def state(self, t, u, modes, exact, left=False, row=None, g=None):
         """A row from the ODE state; ``exact``: u is a step's end value, not interpolated;
-        ``row``: its ``consistent_row`` when already computed (``EventWatch.dips``); ``g``: ``g(t, u)``
+        ``row``: its ``consistent_row`` when already computed (``EventWatch.scan``); ``g``: ``g(t, u)``
         when the stepper has it (a fixed-step method's slope at its step end)."""
         if exact and self.probe is not None:
             self.probe.add(t, u)
@@ -467,51 +474,158 @@ class EventWatch:
     becomes positive: the mode logic has just accepted that state, and a
     "crossing" at the restart instant would loop at the event.
 
-    The functions are also checked at the output instants inside each step
-    (``dips``; their rows are computed for the output anyway): integrated with
+    The functions are also checked inside each step (``scan``: at the output
+    instants, whose rows are computed for the output anyway, at probes a
+    quarter step apart, and where the samples bracket a dip): integrated with
     the smooth continuation of the segment's laws, a function can cross zero
     and come back within one large step, which the step ends alone do not
     see. Found on DOP853 at rtol 1e-6 (a lossy gear between a brake and sine
     loads): a slip that reversed and returned, a sine normal force that
     engaged and released a brake, and a lossy gear's driving side, each inside
     one 0.2-0.3 s step, so that friction drove the motion, the brake never
-    acted and the gear supplied power. So a run finds every mode change that
-    lasts longer than its output interval ``dt_out``; a shorter excursion
-    inside one step can still be missed (a finer ``dt_out`` resolves it).
+    acted and the gear supplied power; and on fuzz seed 31 (``scan``).
     """
 
-    def __init__(self, c, friction):
+    def __init__(self, c, friction, period=math.inf):
         self.c = c
         self.fr = friction
+        self.period = period        # the shortest period of the model's sine signals [s] (``scan``)
         self.armed = np.ones(friction.n_events, bool)
+        self._start_values = None       # the guards at the start of the current step (``scan``)
 
     def values(self, t, u, modes):
         y, yp = consistent_row(self.c, t, u, modes)      # event functions read y only
-        return np.asarray(self.fr.event_values(t, y, yp, modes), float)
+        return np.array(self.fr.event_values(t, y, yp, modes), float)   # a copy: the buffer is reused
 
     def arm(self, values):
         self.armed = values > 0
+        self._start_values = values
 
     def crossed(self, values):
+        self._start_values = values
         hit = self.armed & (values <= 0)
         self.armed |= values > 0
         return np.nonzero(hit)[0]
 
-    def dips(self, t_old, samples, modes, rows):
-        """Crossings at the instants ``samples`` [(t, u)] inside the last step (in time order),
-        before ``crossed`` looks at its end: [(index, last time the function was positive, first
-        time it was not)]. The consistent rows computed on the way go into ``rows`` (by t)."""
+    def scan(self, stepper, inside, end_values, modes, rows):
+        """Crossings inside the last step [t_old, t] that its end values cannot show: the guards go
+        + -> - -> + within it. Returns their brackets ``(index, a, b)`` for ``locate``, earliest first, or [].
+
+        Why: the step control resolves the state, not the guards. A guard can vary much faster than
+        the state it is read from: under a constant friction torque the state is a polynomial that
+        one long step integrates exactly, while the guard (a relative speed against a servo's motion,
+        a holding torque against a sine normal force) swings through zero and back within that step.
+        Seen on fuzz seed 31 (a 26 Hz servo against a clutch): with ``dt_out = 0.2`` DOP853 took 6
+        steps, found 1 of 11 slip reversals, and the driven angle ended 21 times too large.
+
+        How: the guards are read on the step's dense output at the output instants inside it and at
+        probes that leave no gap wider than ``h / SCAN_PROBES`` (probes within half a gap of an output
+        instant are not added; a fine ``dt_out`` costs nothing more). Where the samples of an armed
+        guard bracket a local minimum (a sample below both neighbours, or the step start or end below
+        its neighbour) that the parabola through the three samples puts at or below zero, the guard
+        is read again at the parabola's vertex (or the middle of the wider half of the bracket), at
+        most ``SCAN_REFINE`` times per step: a dip that reaches zero is found, a minimum that stays
+        clearly positive costs one or two more reads. A crossing at a sample goes to ``locate`` as a
+        bracket (last positive, first non-positive). An excursion narrower than the probe spacing
+        that leaves no lower sample beside it can still be missed; ``dt_out`` smaller than it resolves
+        it. Cost: ``SCAN_PROBES - 1`` evaluations of the guards per step (one KKT solve each) on models
+        with friction events and sparse output; none on models without events.
+        """
+        a, b = float(stepper.t_old), float(stepper.t)
+        h = b - a
         armed = self.armed.copy()
-        last_pos = np.full(len(armed), t_old)
-        for s, u in samples:
+        if not armed.any() or not h > 0 or self._start_values is None:
+            return []
+        given = sorted(float(s) for s, _ in inside)
+        states = {float(s): u for s, u in inside}
+        pts = list(given)
+        n = min(max(SCAN_PROBES, math.ceil(h * SCAN_PER_PERIOD / self.period)), SCAN_MAX_PROBES)
+        for j in range(1, n):
+            p = a + h * j / n
+            k = np.searchsorted(given, p)
+            near = min([abs(given[i] - p) for i in (k - 1, k) if 0 <= i < len(given)], default=np.inf)
+            if near > 0.5 * h / n:
+                pts.append(p)
+        pts.sort()
+        vals = {}
+
+        def read(s):
+            u = states.get(s)
+            if u is None:
+                u = stepper.interpolate(s)
             y, yp = rows[s] = consistent_row(self.c, s, u, modes)
-            vals = np.asarray(self.fr.event_values(s, y, yp, modes), float)
-            hit = armed & (vals <= 0)
+            vals[s] = np.array(self.fr.event_values(s, y, yp, modes), float)     # a copy (see ``values``)
+            return vals[s]
+
+        grid = [(a, self._start_values)] + [(s, read(s)) for s in pts] + [(b, end_values)]
+        min_gap = h / (n * SCAN_PER_PERIOD)
+        for _ in range(SCAN_REFINE + 1):
+            hit = self._first_dip(grid, armed)
+            # before a dip is taken, the samples before it must not suggest an earlier one
+            s = self._suspect(grid, armed, b if hit is None else hit[2], min_gap)
+            if s is None or len(vals) >= len(pts) + SCAN_REFINE:
+                if hit is not None and hit[2] < b:
+                    return [hit]
+                return []           # nothing inside, or a crossing by the step end (``crossed``)
+            grid = sorted(grid + [(s, read(s))], key=lambda e: e[0])
+        return []       # pragma: no cover - the loop returns once the reads are spent
+
+    @staticmethod
+    def _first_dip(grid, armed):
+        """Earliest sample where an armed guard is not positive: (index, previous time, its time)."""
+        arm = armed.copy()
+        prev = grid[0][0]
+        for s, v in grid[1:]:
+            hit = arm & (v <= 0)
             if hit.any():
-                return [(int(k), float(last_pos[k]), s) for k in np.nonzero(hit)[0]]
-            armed |= vals > 0
-            last_pos[vals > 0] = s
-        return []
+                return int(np.nonzero(hit)[0][0]), prev, s
+            arm |= v > 0
+            prev = s
+        return None
+
+    @staticmethod
+    def _suspect(grid, armed, upto, min_gap):
+        """Where to read the guards next, looking at the sample intervals up to ``upto`` in time order:
+
+        * the vertex of the parabola through three consecutive samples of an armed guard, all positive,
+          when it falls in the interval and the parabola puts it at or below zero (the middle of the
+          interval when the vertex is too close to a sample);
+        * the middle of an interval longer than ``min_gap`` over which an armed guard, positive at both
+          ends, moves by more than its distance from zero (the samples do not resolve it: a swing
+          faster than the probes, aliased).
+
+        None when no interval suggests a dip."""
+        ts = np.array([e[0] for e in grid])
+        g = np.array([e[1] for e in grid])[:, armed]
+        close = 1e-3 * (ts[-1] - ts[0])
+        for j in range(len(ts) - 1):
+            if ts[j + 1] > upto:
+                break
+            lo, hi = ts[j], ts[j + 1]
+            for i in (j - 1, j):
+                if i < 0 or i + 2 >= len(ts):
+                    continue
+                x, f = ts[i:i + 3], g[i:i + 3]
+                with np.errstate(all="ignore"):      # a straight guard (curv = 0) gives inf/NaN: no candidate
+                    d1 = (f[1] - f[0]) / (x[1] - x[0])
+                    d2 = (f[2] - f[1]) / (x[2] - x[1])
+                    curv = (d2 - d1) / (x[2] - x[0])
+                    xv = 0.5 * (x[0] + x[1]) - d1 / (2 * curv)
+                    fv = f[0] + d1 * (xv - x[0]) + curv * (xv - x[0]) * (xv - x[1])
+                    cand = (f > 0).all(axis=0) & (curv > 0) & (xv > lo) & (xv < hi) & (fv <= 0)
+                if cand.any():
+                    v = float(xv[np.argmax(cand)])
+                    if min(abs(ts - v)) <= close:
+                        v = 0.5 * (lo + hi)
+                    if min(abs(ts - v)) > close:
+                        return v
+            if hi - lo > min_gap:
+                fl, fh = g[j], g[j + 1]
+                with np.errstate(all="ignore"):
+                    moved = (fl > 0) & (fh > 0) & (np.abs(fh - fl) > np.minimum(fl, fh))
+                if moved.any():
+                    return float(0.5 * (lo + hi))
+        return None
 
     def locate(self, stepper, modes, which, dips=()):
         """Earliest crossing in the last step: (t*, u*, index).
@@ -536,6 +650,20 @@ class EventWatch:
 
     def _value_at(self, stepper, s, modes, k):
         return self.values(s, stepper.interpolate(s), modes)[k]
+
+
+def shortest_period(model) -> float:
+    """The shortest period [s] of the ``Sine`` signals of ``model`` (inf without one): the time scale on
+    which a guard read from a prescribed motion or a normal force can swing through zero and back
+    while the state stays smooth (``EventWatch.scan``). A plain callable's time scale is not known."""
+    from ..signals import Sine
+    period = math.inf
+    for comp in model.components.values():
+        for val in comp._values.values():
+            val = getattr(val, "inner", val)       # a checked wrapper of a signal
+            if isinstance(val, Sine) and val.freq_hz != 0 and val.amplitude != 0:
+                period = min(period, 1.0 / abs(val.freq_hz))
+    return period
 
 
 def locate_crossing(f, a, b, fa, fb, max_iter=200):
@@ -805,7 +933,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     out.row(t_start, y, yp, modes)
     if probe is not None:
         probe.add(t_start, u)
-    watch = EventWatch(c, fr) if (fr and fr.n_events > 0) else None
+    watch = EventWatch(c, fr, shortest_period(model)) if (fr and fr.n_events > 0) else None
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     growth = GrowthWatch(t_start, u, max_growth)
     extra = {"rejected": 0}
@@ -834,6 +962,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
             for (comp, old, new, kind) in changes:
                 events.append(Event(t, comp, old, new, kind))
                 guard.record(t, comp)
+            if changes:
+                growth.mode_change()
             if len(events) > max_events:
                 raise SimulationError(f"more than {max_events} mode changes in model '{model.name}'; raise "
                                       f"max_events or simplify the model")
@@ -853,6 +983,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
             for (comp, old, new, kind) in changes:
                 events.append(Event(t, comp, old, new, kind))
                 guard.record(t, comp)
+            if changes:
+                growth.mode_change()
             modes = new_modes
             u = c.ode_state(y)
         elif rec is not None:
@@ -909,8 +1041,9 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
             rows, states = {}, {}
             if watch is not None:
                 inside = [(tq, states.setdefault(tq, stepper.interpolate(tq))) for tq, exact in covered if not exact]
-                dips = watch.dips(stepper.t_old, inside, modes, rows) if inside else []
-                which = watch.crossed(watch.values(stepper.t, stepper.u, modes))
+                end_values = watch.values(stepper.t, stepper.u, modes)
+                dips = watch.scan(stepper, inside, end_values, modes, rows)
+                which = watch.crossed(end_values)
                 if len(which) or dips:
                     t_hit, u_hit, k_hit = watch.locate(stepper, modes, which, dips)
             t_upto = stepper.t if t_hit is None else t_hit
