@@ -123,7 +123,7 @@ from .options import (FIXED_MAX_STEPS, Choice, Flag, Integer, OptionSet, Real, c
 from .richardson import DEFAULT_TOL, simulate_fixed_step
 
 #: independent coordinates from which E is kept sparse (when the mass matrix is diagonal)
-SPARSE_FROM = 200
+SPARSE_FROM = 50
 #: coordinates up to which T and P are dense arrays
 DENSE_MAPS_UPTO = 64
 #: propagators kept per mode set (one per distinct step length)
