@@ -29,6 +29,34 @@ ACCURACIES = [1e-2, 1e-4, 1e-6]
 DT_OUTS = [1e-2, 1e-3]
 
 
+NOTES = """
+What the table shows (the rules' text: `regmech.solvers.auto`, rule 3):
+
+* Before this section's changes, auto sent every linear model of more than 40 coordinates to `expm` at accuracy
+  1e-4 or tighter and to `ida` at 1e-2. Measured the same way (load about 6): the 100-inertia chain at dt_out
+  1e-2 took auto (expm) 918 / 1866 ms at 1e-4 / 1e-6 against ida's 200 / 216 ms (4.6x, 8.7x); at dt_out 1e-3
+  1098 / 1118 ms against 208 / 556 ms (5.3x, 2.0x); the 1000-inertia chain at 1e-2 took auto (ida) 456 ms
+  against expm's 104 ms (4.4x).
+* Why expm was slow on the 100-inertia chain: not its steps but its dense set-up. 200 states (100
+  coordinates) were below the sparse path's threshold (then 200 coordinates), and the dense matrix products
+  of the Taylor start and the doublings fell off a cliff between 50 and 60 coordinates under OpenBLAS's
+  threads on the loaded 2-core machine (an expm contract run at 1e-4: 50 inertias 0.12 s dense, 0.16 s
+  sparse; 60 inertias 1.4 s dense, 0.20 s sparse; with OPENBLAS_NUM_THREADS=1 both about 0.1 s, 100
+  inertias 0.094 s dense, 0.079 s sparse). `expm.SPARSE_FROM` is now 50 coordinates. At 1e-6 and dt_out 1e-2
+  expm also pays a second attempt: the step dt_out fails the Richardson check against the 5 Hz forcing and
+  the suggested step (about 490 steps per forcing period, from the guaranteed order 2) is smaller than needed
+  (at dt_out 1e-3 one step per output interval, 200 per period, met 1e-6).
+* Rule 3 now compares expm's steps (`expm_steps(a)`, the output grid or the forcing's `0.54 a^-1/2` steps
+  per period) with `K(a)` times the periods bounded by the Gershgorin frequency bound, weighted by
+  `max(1, states / 200)`: an ida step grows with the model while the Python overhead of the small ones does
+  not, so at 2000 states expm's sparse step is several times cheaper (ida/expm 2.6 to 4.5 at 1000 inertias,
+  about 1 at 100).
+* Misses: 100 inertias at 1e-6 and dt_out 1e-3 (auto took ida, 1.45x to 1.85x expm in two runs): the forcing
+  model `0.54 a^-1/2` (measured on chain_drive_5's 425 Hz drive) asks 2700 expm steps, the chain met 1e-6 with
+  1000. 10 inertias at 1e-2 and dt_out 1e-2 (1.4x to 1.5x): auto's own analysis on a 30 ms run.
+"""
+
+
 def one(m, solver, acc, dt, timeout):
     t0 = time.perf_counter()
     try:
@@ -84,7 +112,7 @@ def main(argv=None):
     for n, dt, acc, med, picked, ratio in rows:
         lines.append(f"| {n} | {dt:g} | {acc:g} | {fmt(med['auto'])} | {fmt(med['ida'])} | {fmt(med['expm'])} | "
                      f"{fmt(med['scipy:DOP853'])} | {picked} | {'-' if ratio is None else f'{ratio:.2f}'} |")
-    Path(a.out).write_text("\n".join(lines) + "\n")
+    Path(a.out).write_text("\n".join(lines) + "\n" + NOTES)
     print("->", a.out)
 
 

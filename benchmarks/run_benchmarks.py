@@ -37,7 +37,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 WP_DIR = RESULTS / "wp"
-SECTIONS = ["fuzz.md", "calibration.md", "foundation.md", "work_precision.md", "hard_cases.md",
+SECTIONS = ["fuzz.md", "calibration.md", "auto_rules.md", "foundation.md", "work_precision.md", "hard_cases.md",
             "solvers_ode.md", "linsolver.md", "expm.md", "rigid_chain.md", "modal.md", "sweep.md", "peers.md"]
 PICK_BEGIN, PICK_END = "<!-- which-solver:begin -->", "<!-- which-solver:end -->"
 
