@@ -140,7 +140,8 @@ def test_a_large_linear_model_goes_to_expm_only_where_its_steps_repay_them():
     tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
     assert tr.modes is None and tr.linear          # too large for the modal traits
     assert tr.expm_steps_at(1e-6) > auto.large_model_bound(tr, 1e-6)
-    assert auto.choose(tr, 1e-6)[0][0] == "ida"
+    first, reason = auto.choose(tr, 1e-6)[0]
+    assert first == "ida" and "expm steps against at most" in reason
     # ... and no longer an accuracy threshold: at 1e-2 and 1e-4 one step per output interval repays the periods
     for acc in (1e-2, 1e-4):
         first, reason = auto.choose(tr, acc)[0]

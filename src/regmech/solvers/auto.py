@@ -267,6 +267,9 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     why = "nonlinear" if not tr.linear else (
         f"linear, oscillating over {periods:.3g} periods at accuracy {accuracy:g} against about {steps:.0f} expm "
         f"steps" if periods > 0 else "linear")
+    if expm_ok and tr.modes is None and tr.periods_bound() > 0:
+        why = (f"linear with {tr.states} states, about {steps:.0f} expm steps against at most "
+               f"{tr.periods_bound():.3g} periods (up to {tr.f_bound:.3g} Hz): more steps than the periods repay")
     if tr.linear and not expm_ok:
         why += f" (round-off bound {tr.floor:.2g} too close to the accuracy for expm)"
     if tr.spread >= STIFF_SPREAD:
