@@ -125,7 +125,7 @@ def markdown(rows, args, loads) -> str:
     head = ("| code | n | points | import [s] | build [s] | compile [s] | simulate [s] | read [s] | start + exit [s] | "
             "process [s] | RSS after compile [MB] | peak RSS [MB] | IDA wall (stats) [s] (runs) |\n" + "|---" * 13 + "|")
     lines = [
-        "## Large chains end to end (`benchmarks/bench_big_chain.py`)",
+        "# Large chains end to end (`benchmarks/bench_big_chain.py`)",
         "",
         f"Chain of n inertias and spring-dampers (`bench_foundation.chain`), 1 s, `solver=\"ida\", rtol={RTOL:g}`, "
         f"dt_out {args.dt_out or 'default (500 intervals)'}; each run a fresh process; `process` is its whole "

@@ -138,7 +138,8 @@ def main() -> None:
         old.close()
         new.close()
     load1 = os.getloadavg()
-    lines = [f"IDA overhead, before ({old.where}) and after ({new.where}; native: solver='ida', native=True), "
+    lines = ["# IDA per-call overhead (issue 15)", "",
+             f"IDA overhead, before ({old.where}) and after ({new.where}; native: solver='ida', native=True), "
              f"interleaved; medians of {args.repeats}; {platform.processor() or platform.machine()}, "
              f"{os.cpu_count()} cores, load {load0[0]:.2f} -> {load1[0]:.2f}", "",
              "| case | rtol | wall before [ms] | after | native | CPU before [ms] | after | native | "

@@ -461,7 +461,7 @@ def load_raw(path: Path) -> dict:
 
 
 def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command):
-    L = ["## Peers: regmech against hand-written scipy and CasADi (issue 15)", "",
+    L = ["# Peers: regmech against hand-written scipy and CasADi (issue 15)", "",
          f"Produced by `{command}` in {wall / 60:.1f} min. Each case and rtol: every tool once as a warm-up, then "
          f"{repeats} rounds in alternating order in one process; times are medians (a tool whose warm-up took over "
          f"{budget:g} s ran once, marked *single*); the ratio is of wall times, the process CPU times' ratio is "
@@ -476,7 +476,7 @@ def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, 
     L += [f"- {k}: {v}" for k, v in facts] + [f"- uptime at end: {load_end}", ""]
     L += ["The machine is shared with other agents' work (see the load): absolute times are noisy, the ratios "
           "(measured side by side, interleaved) are what to read.", ""]
-    L += ["### Targets", ""]
+    L += ["## Targets", ""]
     rows = []
     for (key, rtol), tools in results.items():
         rows += target_rows(CASES[key], rtol, tools)
@@ -489,7 +489,7 @@ def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, 
                 "ratio of CPU times", "target", "target met"], rows)
     L += [""]
     if big is not None:
-        L += ["### Chain of 100,000 inertias end to end", ""]
+        L += ["## Chain of 100,000 inertias end to end", ""]
         L += ["The chain of `bench_foundation.py` with 100,000 inertias in a fresh Python process: build, compile, "
               "simulate 1 s at rtol 1e-6 with ida (output every 10 ms), then every inertia's speed read by name "
               "(`res[\"J<i>.w\"]`). Measured by this script: no separate 100,000-chain script was on main when "
@@ -507,7 +507,7 @@ def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, 
             L += ["", f"Target <= 30 s end to end: {'met' if ok_t else '**not met**'}; <= 2 GB: "
                       f"{'met' if ok_m else '**not met**'}; compile <= 15 s: "
                       f"{'met' if big['compile'] <= 15 else '**not met**'}. Solver: {big['stats']}", ""]
-    L += ["### Build and compile", "",
+    L += ["## Build and compile", "",
           "regmech: the builder and `Model.compile` on a fresh model (medians); CasADi: SX expressions and "
           "`casadi.integrator` (one build per rtol, median of the two).", ""]
     brows = []
@@ -516,7 +516,7 @@ def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, 
                if t.group == "casadi" and t.build is not None]
         brows.append([key, fmt_ms(b), fmt_ms(c), fmt_ms(statistics.median(cas)) if cas else "-"])
     L += table(["case", "regmech build", "regmech compile", "CasADi build"], brows) + [""]
-    L += ["### Every run", "",
+    L += ["## Every run", "",
           "first call: the warm-up (regmech: a compiled model's first simulate); median: of the rounds.", ""]
     rows = []
     for (key, rtol), tools in results.items():
@@ -525,7 +525,7 @@ def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, 
                          + (" *single*" if t.single else ""), fmt_ms(t.cpu_median()), fmt_ms(t.first),
                          fmt_err(t.error), t.info])
     L += table(["case", "rtol", "tool", "median", "CPU (median)", "first call", "error", "what ran"], rows) + [""]
-    L += ["### References", ""]
+    L += ["## References", ""]
     rrows = [[k, fmt_ms(v["time"]), v["check"]] for k, v in refs.items()]
     L += table(["case", "reference time (DOP853 1e-12 by hand)", "cross-check"], rrows) + [""]
     if notes:

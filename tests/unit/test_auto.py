@@ -111,3 +111,52 @@ def test_a_fast_sinusoidal_input_keeps_tight_accuracies_away_from_expm():
     tr = auto.traits(chain_drive(n_links=5), 0.0, 0.02, 1e-4)
     assert tr.f_forcing == pytest.approx(17 * 25.0)
     assert auto.choose(tr, 1e-6)[0][0] == "ida" and auto.choose(tr, 1e-3)[0][0] == "expm"
+
+
+def sine_driven_chain(n, freq_hz=5.0):
+    """The benchmark chain (benchmarks/bench_foundation.chain, rebuilt here): a sine torque on the first of n
+    inertias joined by spring-dampers, the last one grounded by a spring."""
+    from regmech.components import SpringDamper, Torque
+    from regmech.signals import Sine
+    m = rm.Model(f"sine_chain_{n}")
+    fixed = m.add(Fixed("fixed"))
+    drive = m.add(Torque("drive", tau=Sine(amplitude=10.0, freq_hz=freq_hz)))
+    J = [m.add(Inertia(f"J{i}", J=0.01 * (1.0 + 0.5 * math.sin(i)))) for i in range(n)]
+    m.connect(drive.flange, J[0].flange_a)
+    for i in range(n - 1):
+        sd = m.add(SpringDamper(f"sd{i}", c=1e4, d=1.0))
+        m.connect(J[i].flange_b, sd.flange_a)
+        m.connect(sd.flange_b, J[i + 1].flange_a)
+    end = m.add(Spring("ground", c=1e3))
+    m.connect(J[-1].flange_b, end.flange_a)
+    m.connect(end.flange_b, fixed.flange)
+    return m
+
+
+def test_a_large_linear_model_goes_to_expm_only_where_its_steps_repay_them():
+    # regression: rule 3 sent every linear model above MODAL_MAX coordinates to expm at accuracy <= 1e-4, also
+    # the 100-inertia chain driven at 5 Hz at 1e-6, where the forcing needs thousands of expm steps against a
+    # few dozen periods of its fastest mode (expm 1.0 s, ida 0.25 s)
+    tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
+    assert tr.modes is None and tr.linear          # too large for the modal traits
+    assert tr.expm_steps_at(1e-6) > auto.large_model_bound(tr, 1e-6)
+    first, reason = auto.choose(tr, 1e-6)[0]
+    assert first == "ida" and "expm steps against at most" in reason
+    # ... and no longer an accuracy threshold: at 1e-2 and 1e-4 one step per output interval repays the periods
+    for acc in (1e-2, 1e-4):
+        first, reason = auto.choose(tr, acc)[0]
+        assert first == "expm" and "too many for the modal traits" in reason
+
+
+def test_rule_3_weighs_the_size_of_the_model():
+    # the same steps and periods: a ten times larger model makes each step of ida dearer, so expm repays more
+    tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
+    big = auto.Traits(**{**{f: getattr(tr, f) for f in ("linear", "nonlinear", "floor", "spread", "modes_of", "span",
+                                                       "expm_steps", "friction", "f_bound", "f_forcing")},
+                         "states": 10 * tr.states})
+    assert auto.large_model_bound(big, 1e-6) == pytest.approx(10 * auto.large_model_bound(tr, 1e-6))
+    assert auto.choose(tr, 1e-6)[0][0] == "ida" and auto.choose(big, 1e-6)[0][0] == "expm"
+    # a model of up to EXPM_STATES_REF states is never weighted below one
+    small = auto.Traits(**{**big.__dict__, "states": 10, "_modes": False})
+    assert auto.large_model_bound(small, 1e-4) == pytest.approx(
+        auto.steps_per_period(1e-4) * small.periods_bound())

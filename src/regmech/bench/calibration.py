@@ -558,9 +558,10 @@ def _auto_rules_text(records) -> list[str]:
         f"sinusoidal input ({pair('chain_drive_5', 1e-6)}: expm's step fell to 4.4e-6 s for the 425 Hz forcing).",
         f"* **expm near the round-off bound** (bound > {auto.NEAR_ROUNDOFF:g} a, and <= a/3): ida's rtol would "
         f"sit at the link-spread limit: {pair('inertia_ratio_1e8', 1e-6)} (ida refused).",
-        f"* **expm for large linear models at a <= {auto.EXPM_LARGE_ACCURACY:g}** (more than {auto.MODAL_MAX} "
-        f"coordinates, no modal traits): {pair('train_100', 1e-4)}; {pair('train_100', 1e-6)}; "
-        f"{pair('train_100', 1e-2)}.",
+        f"* **expm for large linear models whose steps are within the bounded periods** (more than "
+        f"{auto.MODAL_MAX} coordinates, no modal traits: `expm_steps(a) <= K(a) span f_bound max(1, states / "
+        f"{auto.EXPM_STATES_REF:g})`, f_bound the Gershgorin bound of the highest frequency; the chains of "
+        f"auto_rules.md): {pair('train_100', 1e-4)}; {pair('train_100', 1e-6)}; {pair('train_100', 1e-2)}.",
         "* Misses: the cells of the auto table above the target, all within 2x; a rule for them would rest on one "
         "case each.", ""]
 

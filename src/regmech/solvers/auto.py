@@ -46,10 +46,20 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
 2. ``floor > accuracy * NEAR_ROUNDOFF``: ``expm``, since a stepping method
    would need an rtol near the limit the link spread sets
    (``common.check_link_spread``; ida refused inertia_ratio_1e8 at 1e-6);
-3. too large for the modal traits (more than ``MODAL_MAX`` coordinates)
-   at ``accuracy <= EXPM_LARGE_ACCURACY``: ``expm`` (train_100: 0.97 s
-   against ida's 1.19 s at 1e-4, 1.07 against 1.54 at 1e-6, but ida 2x
-   faster at 1e-2);
+3. too large for the modal traits (more than ``MODAL_MAX`` coordinates):
+   the test of rule 1 with the upper bound ``span * f_bound`` of the
+   periods (``f_bound``: twice the fastest link's local frequency, a
+   Gershgorin bound of the highest natural frequency, at most the Nyquist
+   frequency of the output grid) and a step of ``ida`` that costs more the
+   larger the model: ``expm_steps(a) <= K(a) * span * f_bound *
+   max(1, states / EXPM_STATES_REF)``: ``expm``. Measured
+   (benchmarks/results/auto_rules.md, chains of 100 and 1000 inertias with
+   a 5 Hz sine drive, 1 s): at 1000 inertias expm's sparse step is about
+   5x cheaper than ida's (1e-4, dt_out 1e-3: expm 0.33 s, ida 1.0 s), at
+   100 inertias they cost alike and the step counts decide (1e-6, dt_out
+   1e-2: the forcing needs about 2700 expm steps, ida 0.61 s, expm 1.55 s);
+   train_100 (501 output steps against 164 bounded periods): expm 0.16 s,
+   ida 0.45 s at 1e-6, and within 1.4x of ida at 1e-2;
 4. otherwise ``ida`` (the fastest solver under the contract on every
    nonlinear case measured, stiff ones included).
 
@@ -82,8 +92,10 @@ NEAR_ROUNDOFF = 1e-2
 #: expm when its steps are at most this many times the periods a stepping method must resolve
 EXPM_STEPS_PER_PERIOD = 4.0
 EXPM_STEPS_PER_DECADE = 2.0
-#: linear models too large for the modal traits go to expm at this accuracy or tighter
-EXPM_LARGE_ACCURACY = 1e-4
+#: a model too large for the modal traits: ida's step costs about states / EXPM_STATES_REF times an expm step (at
+#: least once) in rule 3 (measured on the chains of benchmarks/results/auto_rules.md: alike at 200 states, expm's
+#: sparse step about 5x cheaper at 2000)
+EXPM_STATES_REF = 200.0
 #: damped modes computed for linear models up to this many independent coordinates (the eigenvalues of the
 #: companion matrix cost 0.15-0.75 s at 100 on the loaded development machine, a few ms at 40)
 MODAL_MAX = 40
@@ -223,6 +235,12 @@ def steps_per_period(accuracy: float) -> float:
     return EXPM_STEPS_PER_PERIOD + EXPM_STEPS_PER_DECADE * math.log10(1.0 / accuracy)
 
 
+def large_model_bound(tr: Traits, accuracy: float) -> float:
+    """Rule 3's bound of expm's steps for a model without modal traits: ``K(a) * span * f_bound *
+    max(1, states / EXPM_STATES_REF)``."""
+    return steps_per_period(accuracy) * tr.periods_bound() * max(1.0, tr.states / EXPM_STATES_REF)
+
+
 def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     """Candidates ``[(solver, reason), ...]`` in order (module docstring, rules 1-3)."""
     out = []
@@ -241,12 +259,17 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
         out.append(("expm", f"linear, its round-off bound {tr.floor:.2g} within {1 / NEAR_ROUNDOFF:g}x of the "
                             f"accuracy {accuracy:g}: a stepping method would need an rtol near the limit of the link "
                             f"spread {tr.spread:.3g}"))
-    elif expm_ok and accuracy <= EXPM_LARGE_ACCURACY and tr.periods_bound() > 0 and tr.modes is None:
-        out.append(("expm", f"linear with {tr.states} states at accuracy {accuracy:g}: the exact flow takes one "
-                            f"step per output interval"))
+    elif expm_ok and tr.modes is None and tr.periods_bound() > 0 and steps <= large_model_bound(tr, accuracy):
+        out.append(("expm", f"linear with {tr.states} states (too many for the modal traits) at accuracy "
+                            f"{accuracy:g}: the exact flow takes about {steps:.0f} steps, against at most "
+                            f"{tr.periods_bound():.3g} periods (up to {tr.f_bound:.3g} Hz) a stepping method must "
+                            f"resolve, each of its steps costing more the larger the model"))
     why = "nonlinear" if not tr.linear else (
         f"linear, oscillating over {periods:.3g} periods at accuracy {accuracy:g} against about {steps:.0f} expm "
         f"steps" if periods > 0 else "linear")
+    if expm_ok and tr.modes is None and tr.periods_bound() > 0:
+        why = (f"linear with {tr.states} states, about {steps:.0f} expm steps against at most "
+               f"{tr.periods_bound():.3g} periods (up to {tr.f_bound:.3g} Hz): more steps than the periods repay")
     if tr.linear and not expm_ok:
         why += f" (round-off bound {tr.floor:.2g} too close to the accuracy for expm)"
     if tr.spread >= STIFF_SPREAD:
