@@ -60,24 +60,12 @@ def inertia(i: int) -> float:
 
 
 def chain(n: int):
-    """The benchmark chain (see the module docstring)."""
-    import regmech as rm
-    from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
+    """The benchmark chain (see the module docstring; ``regmech.bench.hard_models.benchmark_chain``)."""
+    from regmech.bench.hard_models import benchmark_chain
     from regmech.signals import Sine
 
-    m = rm.Model(f"chain{n}")
-    fixed = m.add(Fixed("fixed"))
-    drive = m.add(Torque("drive", tau=Sine(amplitude=AMPLITUDE, freq_hz=FREQ_HZ)))
-    J = [m.add(Inertia(f"J{i}", J=inertia(i), phi0=0.0, w0=0.0)) for i in range(n)]
-    m.connect(drive.flange, J[0].flange_a)
-    for i in range(n - 1):
-        sd = m.add(SpringDamper(f"sd{i}", c=C, d=D))
-        m.connect(J[i].flange_b, sd.flange_a)
-        m.connect(sd.flange_b, J[i + 1].flange_a)
-    end = m.add(Spring("ground_spring", c=C_GROUND))
-    m.connect(J[-1].flange_b, end.flange_a)
-    m.connect(end.flange_b, fixed.flange)
-    return m
+    assert C_GROUND == 1e3 and all(inertia(i) == 1.0 + 0.01 * (i % 7) for i in range(7))   # its fixed values
+    return benchmark_chain(n, tau=Sine(amplitude=AMPLITUDE, freq_hz=FREQ_HZ), c=C, d=D)
 
 
 def mixed_chain(n: int):

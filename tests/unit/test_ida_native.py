@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import regmech as rm
-from regmech.components import Damper, Fixed, IdealGear, Inertia, Speed, Spring, SpringDamper, Torque
+from regmech.bench.hard_models import benchmark_chain as chain
+from regmech.components import Damper, Fixed, IdealGear, Inertia, Speed, SpringDamper, Torque
 from regmech.library import coupled_clutches, first
 from regmech.signals import Constant, Function, Ramp, Sine, Step
 
@@ -17,22 +18,6 @@ from regmech.solvers import ida_native  # noqa: E402
 
 if isinstance(ida_native.libraries(), str):
     pytest.skip(f"native IDA not available: {ida_native.libraries()}", allow_module_level=True)
-
-
-def chain(n, tau=None, c=1e4, d=1.0):
-    m = rm.Model(f"chain{n}")
-    f = m.add(Fixed("fixed"))
-    drive = m.add(Torque("drive", tau=tau if tau is not None else Sine(amplitude=10.0, freq_hz=5.0)))
-    J = [m.add(Inertia(f"J{i}", J=1.0 + 0.01 * (i % 7), phi0=0.0, w0=0.0)) for i in range(n)]
-    m.connect(drive.flange, J[0].flange_a)
-    for i in range(n - 1):
-        sd = m.add(SpringDamper(f"sd{i}", c=c, d=d))
-        m.connect(J[i].flange_b, sd.flange_a)
-        m.connect(sd.flange_b, J[i + 1].flange_a)
-    end = m.add(Spring("ground_spring", c=1e3))
-    m.connect(J[-1].flange_b, end.flange_a)
-    m.connect(end.flange_b, f.flange)
-    return m
 
 
 def mixed_inputs():

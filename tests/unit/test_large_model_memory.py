@@ -12,26 +12,10 @@ import numpy as np
 import pytest
 
 import regmech as rm
+from regmech.bench.hard_models import benchmark_chain as chain
 from regmech.component import Param
-from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
-from regmech.signals import Sine
+from regmech.components import Inertia, Spring
 from regmech.solvers.common import Recorder
-
-
-def chain(n: int) -> rm.Model:
-    m = rm.Model(f"chain{n}")
-    fixed = m.add(Fixed("fixed"))
-    drive = m.add(Torque("drive", tau=Sine(amplitude=10.0, freq_hz=5.0)))
-    J = [m.add(Inertia(f"J{i}", J=1.0 + 0.01 * (i % 7), phi0=0.0, w0=0.0)) for i in range(n)]
-    m.connect(drive.flange, J[0].flange_a)
-    for i in range(n - 1):
-        sd = m.add(SpringDamper(f"sd{i}", c=1e4, d=1.0))
-        m.connect(J[i].flange_b, sd.flange_a)
-        m.connect(sd.flange_b, J[i + 1].flange_a)
-    end = m.add(Spring("ground_spring", c=1e3))
-    m.connect(J[-1].flange_b, end.flange_a)
-    m.connect(end.flange_b, fixed.flange)
-    return m
 
 
 def _array_bytes(obj) -> int:

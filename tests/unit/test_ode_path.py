@@ -5,28 +5,16 @@ import numpy as np
 import pytest
 
 import regmech as rm
+from regmech.bench.hard_models import benchmark_chain
 from regmech.bench.hard_models import stretched_chain
 from regmech.compile.odeform import fast_operator, ode_form
-from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
-from regmech.signals import Sine, Step
+from regmech.signals import Step
 from regmech.solvers import ode_driver as od
 from regmech.solvers.common import signal_breakpoints
 
 
 def chain(n, c=1e4, d=1.0, drive=None):
-    m = rm.Model(f"chain{n}")
-    fixed = m.add(Fixed("fixed"))
-    tq = m.add(Torque("drive", tau=drive if drive is not None else Sine(amplitude=10.0, freq_hz=5.0)))
-    J = [m.add(Inertia(f"J{i}", J=1.0 + 0.01 * (i % 7))) for i in range(n)]
-    m.connect(tq.flange, J[0].flange_a)
-    for i in range(n - 1):
-        sd = m.add(SpringDamper(f"sd{i}", c=c, d=d))
-        m.connect(J[i].flange_b, sd.flange_a)
-        m.connect(sd.flange_b, J[i + 1].flange_a)
-    end = m.add(Spring("ground", c=1e3))
-    m.connect(J[-1].flange_b, end.flange_a)
-    m.connect(end.flange_b, fixed.flange)
-    return m
+    return benchmark_chain(n, tau=drive, c=c, d=d)
 
 
 def start(c):
