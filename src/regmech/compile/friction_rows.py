@@ -1,18 +1,8 @@
 """The friction rows of the compiled DAE: each device's equation in its current mode.
 
-A friction or loss element keeps **one equation structure** in all modes (the
-"universal equation" of SOURCES.md 003, MSL PartialFriction): a row of the
-constraint matrix ``G_f`` (its relative coordinate) and one unknown force ``lam``:
-
-=========  ====  ===========================================
-mode       code  equation
-=========  ====  ===========================================
-Backward   -1    ``lam = -tau_k(|w_rel|)``
-Stuck       0    ``a_rel = 0`` (``lam`` = holding torque)
-Forward     1    ``lam = +tau_k(|w_rel|)``
-Free        2    ``lam = 0``   (normal force <= 0)
-Held        3    ``lam = 0``   (zero relative speed kept by other stuck devices)
-=========  ====  ===========================================
+A friction or loss element keeps one equation structure in all modes: a row of
+the constraint matrix ``G_f`` and one unknown force ``lam``; the mode codes and
+the equation of each are tabled in ``regmech.components.friction``.
 
 Row j's equation when not stuck is linear in the multipliers,
 ``c_own lam_j + c_cpl lam_cpl(j) = rhs(|w_rel|, t)``, as the device states it
