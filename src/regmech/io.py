@@ -207,6 +207,16 @@ def load_result(path) -> StoredResult:
     if _text(raw.get("format", "")) != FORMAT:
         raise RegmechError(f"load_result: '{path}' is a .mat file but not a regmech result (no "
                            f"format = '{FORMAT}'); write results with res.save(path)")
+    try:
+        return _read(raw, path)
+    except (KeyError, IndexError, ValueError, TypeError, json.JSONDecodeError) as exc:
+        raise RegmechError(f"load_result: '{path}' is a damaged regmech result ({type(exc).__name__}: {exc}); "
+                           f"save the result again with res.save(path)") from None
+
+
+def _read(raw: dict, path: Path):
+    """The result held by a regmech .mat file's variables (``load_result``); any missing or malformed variable
+    raises KeyError/IndexError/ValueError/TypeError, which ``load_result`` reports naming the file."""
     version = int(_scalar(raw["format_version"]))
     if version > FORMAT_VERSION:
         raise RegmechError(f"load_result: '{path}' has format version {version}, this regmech reads up to "
@@ -215,6 +225,10 @@ def load_result(path) -> StoredResult:
     names = _strings(raw["names"]) if np.asarray(raw["names"]).size else []
     units = _strings(raw["units"]) if np.asarray(raw["units"]).size else []
     data = np.asarray(raw["data"], float).reshape(len(t), len(names))
+    if len(units) != len(names):
+        raise ValueError(f"{len(names)} signal names but {len(units)} units")
+    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) >= 0)):
+        raise ValueError("the time vector is not finite and non-decreasing")
     traj = StoredTrajectory(t, data, names, units)
 
     ev = raw["events"][0, 0]

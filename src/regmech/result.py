@@ -24,7 +24,7 @@ import numpy as np
 
 from . import units as units_mod
 from ._numbers import describe
-from .errors import RegmechError, UnknownSignalError
+from .errors import ParameterError, RegmechError, UnknownSignalError
 from .modes import MODE_NAMES
 
 
@@ -175,9 +175,12 @@ class Result:
         event instant (stored twice) the value just after the event. ``t`` a number gives a float, an
         array of times an array. ``unit``: a display unit (``res.get``)."""
         tt, y = self.t, self.get(name, unit=unit)
-        tq = np.asarray(t, float)
+        try:
+            tq = np.asarray(t, float)
+        except (TypeError, ValueError):
+            tq = np.array(np.nan)
         if not np.all(np.isfinite(tq)):
-            raise RegmechError(f"res.at('{name}', t): t must be finite, got {t!r}")
+            raise RegmechError(f"res.at('{name}', t): t must be a finite time [s] or an array of them, got {t!r}")
         if len(tt) < 2:
             vals = np.full(tq.shape, float(y[0]))
         else:
@@ -191,8 +194,11 @@ class Result:
 
     def final(self, name: str | None = None, unit: str | None = None):
         """Value of signal ``name`` at the end of the run (a float); without a name, a dict of the final
-        values of every signal (SI). ``unit``: a display unit (``res.get``)."""
+        values of every signal (SI; ``unit`` then refused). ``unit``: a display unit (``res.get``)."""
         if name is None:
+            if unit is not None:
+                raise ParameterError(f"res.final(unit={unit!r}) needs a signal name: one unit does not fit every "
+                                     f"signal; use res.final(name, unit=...) or res.to_dataframe(units=...)")
             return {n: float(self[n][-1]) for n in self.names}
         return float(self.get(name, unit=unit)[-1])
 
@@ -201,6 +207,8 @@ class Result:
         """SI unit of signal ``name`` (``"rad/s"``, ``"N m"``, ``"1"`` for modes; None if its component
         does not declare it): from the kind of its flange or component and its parameters' units
         (``Component.signal_unit``, ``regmech.units``)."""
+        if not isinstance(name, str):
+            raise UnknownSignalError(f"res.unit() takes a signal name (a str), got {name!r}")
         if name not in self:
             raise UnknownSignalError(self._unknown(name))
         units = self._cache.setdefault(("units",), {})

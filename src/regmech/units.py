@@ -127,6 +127,9 @@ def factor(si_unit: str | None, display: str, signal: str = "") -> float:
     ``ParameterError`` naming ``signal``, its unit and the compatible choices when ``display`` does not
     fit (or is not in ``DISPLAY_UNITS``).
     """
+    if not isinstance(display, str):
+        raise ParameterError(f"{('signal ' + repr(signal)) if signal else 'a value'}: a display unit is a str such "
+                             f"as 'rpm' (regmech.units.DISPLAY_UNITS), got {display!r}")
     want = normalise(display)
     if si_unit is not None and want == si_unit:
         return 1.0

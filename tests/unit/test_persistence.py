@@ -106,3 +106,35 @@ def test_errors_name_the_path_and_the_fix(tmp_path):
     (tmp_path / "junk.mat").write_text("not a mat file")
     with pytest.raises(RegmechError, match="not a MATLAB .mat file"):
         rm.load_result(tmp_path / "junk.mat")
+
+
+@pytest.mark.parametrize("damage", ["nan_time", "no_events", "short_units"])
+def test_a_damaged_file_is_a_regmech_error_naming_it(tmp_path, damage):
+    # regression: past the format check, a missing variable was a bare KeyError and a NaN time loaded silently
+    # (res.at then interpolated a wrong value)
+    path = tmp_path / "run.mat"
+    _run("first").save(path)
+    raw = {k: v for k, v in scipy.io.loadmat(path).items() if not k.startswith("__")}
+    if damage == "nan_time":
+        raw["time"].flat[1] = np.nan
+    elif damage == "no_events":
+        del raw["events"]
+    else:
+        raw["units"] = raw["units"][..., :1]
+    scipy.io.savemat(path, raw)
+    with pytest.raises(RegmechError, match="damaged regmech result") as err:
+        rm.load_result(path)
+    assert str(path) in str(err.value)
+
+
+def test_wrong_types_are_regmech_errors():
+    res = _run("first")
+    name = res.names[0]
+    with pytest.raises(RegmechError, match="finite time"):
+        res.at(name, "abc")
+    with pytest.raises(rm.UnknownSignalError, match="a str"):
+        res.unit(5)
+    with pytest.raises(rm.ParameterError, match="display unit is a str"):
+        res.get(name, unit=["rpm"])
+    with pytest.raises(rm.ParameterError, match="needs a signal name"):
+        res.final(unit="rpm")
