@@ -399,3 +399,22 @@ def test_a_jumping_speed_reference_is_named_not_an_empty_contradiction(solver):
     m.connect(J2.flange_b, b.flange)
     with pytest.raises(rm.SimulationError, match=r"Speed 'src': its reference 'w_ref'.*jumps at t=0.3 s.*Ramp"):
         m.simulate(1.0, solver=solver)
+
+
+@pytest.mark.parametrize("kw", [{}, {"solver": "ida", "accuracy": 1e-3}])
+def test_output_cap_holds_before_auto_and_the_contract_read_the_grid(kw):
+    # regression: auto's traits built the output grid before any cap was checked (numpy MemoryError, 745 GiB)
+    with pytest.raises(rm.ParameterError, match="max_points"):
+        coupled_clutches().simulate(1e3, 1e-8, **kw)
+
+
+def test_max_points_of_two_gives_a_step_not_a_division_by_zero():
+    from regmech.solvers.options import check_times
+    with pytest.raises(rm.ParameterError, match=r"dt_out >= 1 s"):
+        check_times(0.0, 1.0, 0.1, max_points=2)
+
+
+def test_bearing_friction_refuses_a_negative_torque_table():
+    # regression: a negative friction torque was accepted and drove the motion it should resist
+    with pytest.raises(rm.ParameterError, match="BearingFriction 'b'.*tau_table"):
+        BearingFriction("b", tau_table=[[0.0, -2.0], [1.0, -3.0]]).validate()

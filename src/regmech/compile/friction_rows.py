@@ -128,7 +128,6 @@ class FrictionRows:
         c = self.c
         G = self.G.tocoo()
         r = c.r_fric[G.row]
-        self.woff = woff
         k = 5
         pb.weighted(r, c.iv[G.col], G.data, woff + k * G.row + 0)
         dummy = c.is_dummy_v[G.col]

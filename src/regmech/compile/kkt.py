@@ -101,7 +101,7 @@ def _sparse(c, modes, relations, pivot_tol):
     except RuntimeError:
         return None
     d = np.abs(lu.U.diagonal())
-    if d.size and d.min() <= pivot_tol * d.max():
+    if not np.all(np.isfinite(d)) or (d.size and d.min() <= pivot_tol * d.max()):
         return None
     return lu
 

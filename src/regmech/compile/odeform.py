@@ -70,9 +70,8 @@ def fast_operator(M):
             break
     else:
         return M                                           # no single order serves every row
-    ranks = rank
     data = np.zeros((len(order), cols))
-    data[ranks, M.indices] = M.data                        # DIA stores entry (i, i + o) at data[k, i + o]
+    data[rank, M.indices] = M.data                        # DIA stores entry (i, i + o) at data[k, i + o]
     return sp.dia_matrix((data, np.array(order)), shape=M.shape)
 
 

@@ -213,6 +213,19 @@ class BearingFriction(FrictionDevice):
     def rows(self):
         return [{"support": -1.0, "flange": 1.0}]
 
+    def validate(self):
+        # a negative friction torque would drive the motion it should resist (and the stuck test
+        # tau0_max - |lam| would fail from the start)
+        tab = self._values.get("tau_table")
+        if tab is not None and (tab[0, 0] < 0 or np.any(tab[:, 1] < 0)):
+            from ..errors import ParameterError
+            raise ParameterError(f"BearingFriction '{self.name}': tau_table needs speeds w >= 0 and friction "
+                                 f"torques >= 0 (the friction opposes the motion in either direction)")
+        if self._values.get("peak", 1.0) < 1.0:
+            from ..errors import ParameterError
+            raise ParameterError(f"BearingFriction '{self.name}': parameter 'peak' must be >= 1 "
+                                 f"(break-away over kinetic torque), got {self._values['peak']}")
+
     def kinetic(self, w_abs, t, left=False):
         tab = self.tau_table
         ws, ts = tab[:, 0], tab[:, 1]

@@ -97,6 +97,12 @@ def _simulate(model, t_end, dt_out, solver, accuracy, t_start, options):
     from .accuracy import check_accuracy, simulate_with_accuracy
     if accuracy is not None:
         accuracy = check_accuracy(accuracy)
+    if (solver == "auto" or accuracy is not None) and callable(getattr(model, "compile", None)):
+        # auto's traits and the contract's grid read the output grid and the signals' breakpoints before
+        # any solver's own entry checks them: the caps hold here first (a 1e-8 s dt_out over 1e3 s was a
+        # numpy MemoryError of 745 GiB; a 1e-8 s Pulse, 1e8 breakpoints listed)
+        t0, t1, dt, _ = check_times(t_start, t_end, dt_out, options.get("max_points", MAX_POINTS))
+        check_signals(model, t0, t1, check_max_time_events(options.get("max_time_events", MAX_TIME_EVENTS)))
     if solver == "auto":
         from .auto import simulate_auto
         return simulate_auto(model, t_start, t_end, dt_out, accuracy, options)

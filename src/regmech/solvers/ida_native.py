@@ -30,6 +30,8 @@ import weakref
 
 import numpy as np
 
+from ..errors import SimulationError
+
 #: signal classes the kernels evaluate (``_native_kernels._signal``)
 _SUPPORTED = ("Constant", "Sine", "Step", "Ramp")
 
@@ -278,7 +280,8 @@ class NativeIDA:
         self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data], np.int64)
         ctx = ctypes.c_void_p()
         if lib.ctx_create(0, ctypes.byref(ctx)) != 0:
-            raise RuntimeError("SUNContext_Create failed")
+            raise SimulationError(f"the native IDA path could not create a SUNDIALS context for model "
+                                  f"'{c.model.name}'; run it without native=True")
         yy, yp, at, idv = (lib.nv_new(N, ctx) for _ in range(4))
         if linsolver == "dense":
             A = lib.dense(N, N, ctx)
@@ -288,7 +291,8 @@ class NativeIDA:
             LS = lib.ls_band(yy, A, ctx)
         mem = lib.create(ctx)
         if not (yy and yp and at and idv and A and LS and mem):
-            raise MemoryError("SUNDIALS could not allocate the native IDA solver")
+            raise SimulationError(f"SUNDIALS could not allocate the native IDA solver for model '{c.model.name}' "
+                                  f"({N} unknowns); run it without native=True")
         self._handles = (ctypes.c_void_p(mem), (yy, yp, at, idv), A, LS, ctx)
         weakref.finalize(self, _release, lib, self._handles)
         self.mem, self.yy, self.yp = mem, yy, yp
@@ -309,10 +313,6 @@ class NativeIDA:
         # steps taken in the last solve, as the usual path's counter (``ida._make_solver``) reports them:
         # here IDA's own count of accepted steps (IDAReInit sets it back to zero)
         self.regmech_attempts = [None, 0]
-
-    def set_t_right(self, t_right):
-        """The time from which signals are read as left limits (``CompiledSystem._t_right``)."""
-        self.fdata[0] = t_right
 
     def _setup(self, t0):
         lib, K = self.lib, self.K

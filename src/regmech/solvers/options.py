@@ -324,7 +324,7 @@ def too_many_points(t0, t1, dt, points, cap) -> str:
             f"model per point)") if points < 1e15 else "nothing else can hold it"
     return (f"simulate(): dt_out={dt:g} s from t_start={t0:g} s to t_end={t1:g} s asks for {points:,.0f} output "
             f"points, more than max_points={cap} (every point holds the whole state in memory). Use dt_out >= "
-            f"{_round_up((t1 - t0) / (cap - 2)):g} s, or {more}.")
+            f"{_round_up((t1 - t0) / max(cap - 1, 1)):g} s, or {more}.")
 
 
 def _round_up(x: float) -> float:
