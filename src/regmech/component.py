@@ -477,6 +477,21 @@ class Device(Component):
         """Kind of this instance (a class may decide per instance, e.g. Shaft)."""
         return self.kind
 
+    #: the parameters that fix the start value of the device's own coordinate (row 0, ``rel = x_b - x_a``):
+    #: (its position, its speed), None where the class has none. A given value is a start equation
+    #: ``rel(t0) = value`` (MSL's ``phi_rel(start=..., fixed=true)``), met with the masses' own start values by
+    #: the consistent start (``CompiledSystem.project``), or refused naming the device when they contradict.
+    relative_start_params: ClassVar[tuple[str | None, str | None]] = (None, None)
+
+    def relative_starts(self) -> list[tuple[int, int, float, str]]:
+        """``[(level, row, value, parameter)]``: the fixed start values given for the device's coordinate
+        (level 0 its position, 1 its speed; row 0)."""
+        out = []
+        for level, pname in enumerate(self.relative_start_params):
+            if pname is not None and self._values.get(pname) is not None:
+                out.append((level, 0, float(self._values[pname]), pname))
+        return out
+
     def rows(self) -> list[dict[str, float]]:
         """Structure rows: coefficient of each flange's position in each device coordinate."""
         return [{"flange_a": -1.0, "flange_b": 1.0}]

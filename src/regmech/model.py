@@ -345,7 +345,7 @@ def _start_point(c, t, modes):
     st = c.structure
     guess_x = np.where(np.isfinite(st.start_pos), st.start_pos, 0.0)
     guess_v = np.where(np.isfinite(st.start_vel), st.start_vel, 0.0)
-    x, v = c.project(float(t), guess_x, guess_v, st.start_pos, None, arr)
+    x, v = c.project(float(t), guess_x, guess_v, st.start_pos, None, arr, starts=(0,))
     warnings.warn(f"linearize(modes=...): the start speeds of model '{c.model.name}' contradict the modes asked "
                   f"for ({reason.split('. Fix:')[0]}); linearised at the nearest speeds that obey them "
                   f"(mass-weighted, momentum kept). To linearise where a run is, pass at=res "

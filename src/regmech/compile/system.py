@@ -322,17 +322,27 @@ class CompiledSystem:
         sol = self._kkt(modes, relations).solve(rhs)
         return sol[: self.n], sol[self.n:], dz
 
-    def project(self, t, x_guess, v_guess, fixed_x=None, fixed_v=None, modes=None):
+    def project(self, t, x_guess, v_guess, fixed_x=None, fixed_v=None, modes=None, starts=()):
         """Closest consistent (x, v) to the guesses: position and velocity
         constraints hold exactly; entries of ``fixed_*`` (non-NaN) are kept.
         Corrections are mass-weighted (an impulse for velocities).
 
+        ``starts``: the levels (0 positions, 1 speeds) at which the devices' fixed start values of their
+        own coordinates (``phi_rel_start``, ``w_rel_start``: ``structure.start_relations``) are equations
+        too (the start of a run; not a state taken from a run).
+
         Fixed values that the constraints (rigid devices, gears, motion sources
-        at ``t``, stuck friction rows) cannot meet raise ``StructureError``
+        at ``t``, stuck friction rows, devices' start values) cannot meet raise ``StructureError``
         naming the masses and devices of each conflicting group."""
         gp, gv = self._refs(t)
-        x = self._project_level(self.Gp, gp[0] - self.e0p, x_guess, fixed_x, 0, t,
-                                lambda: self._constraint_labels(0, gp, gv, ()))
+        rel = [self.structure.start_relations[k] if k in starts else () for k in (0, 1)]
+        G, rhs = [self.Gp], [gp[0] - self.e0p]
+        if rel[0]:
+            R, r = self._relation_rows(rel[0], 0)
+            G.append(R)
+            rhs.append(r)
+        x = self._project_level(sp.vstack(G).tocsr() if rel[0] else self.Gp, np.concatenate(rhs), x_guess,
+                                fixed_x, 0, t, lambda: self._constraint_labels(0, gp, gv, (), rel[0]))
         G = [self.Gpv]
         rhs = [np.concatenate([gp[1], gv[0]])]
         stuck = ()
@@ -340,21 +350,43 @@ class CompiledSystem:
             stuck = np.nonzero(np.asarray(modes) == 0)[0]
             G.append(self.Gf[stuck])
             rhs.append(np.zeros(len(stuck)))
+        if rel[1]:
+            R, r = self._relation_rows(rel[1], 1)
+            G.append(R)
+            rhs.append(r)
         v = self._project_level(sp.vstack(G).tocsr(), np.concatenate(rhs), v_guess, fixed_v, 1, t,
-                                lambda: self._constraint_labels(1, gp, gv, stuck))
+                                lambda: self._constraint_labels(1, gp, gv, stuck, rel[1]))
         return x, v
 
-    def _constraint_labels(self, level, gp, gv, stuck):
+    def _relation_rows(self, relations, level):
+        """``(R, r)``: the devices' start values as rows ``R x = r`` (positions: ``value - offset``, the ground's
+        share of the row moved to the right; speeds: ``value``)."""
+        data, cols, ptr, r = [], [], [0], []
+        for rel in relations:
+            data.extend(rel.row.coefs)
+            cols.extend(rel.row.cols)
+            ptr.append(len(cols))
+            r.append(rel.value - (rel.row.offset if level == 0 else 0.0))
+        R = sp.csr_matrix((np.asarray(data, float), np.asarray(cols, np.int64), np.asarray(ptr, np.int64)),
+                          shape=(len(relations), self.n))
+        return R, np.asarray(r, float)
+
+    def _constraint_labels(self, level, gp, gv, stuck, relations=()):
         """The ``Row`` of each constraint row at ``level`` (0: G_p; 1: G_p, G_v, stuck friction
-        rows) and, for source rows, what the source prescribes (for error messages only)."""
+        rows; then the devices' start ``relations``), for source rows what the source prescribes, and
+        the start relations by row (for error messages only)."""
         st = self.structure
         if level == 0:
-            return st.position, {j: f"{r.device.ref_param}={gp[0, j]:.10g}" for j, r in enumerate(st.position)
-                                 if r.device.device_kind() == "position"}
-        refs = {j: f"d/dt {r.device.ref_param}={gp[1, j]:.10g}" for j, r in enumerate(st.position)
-                if r.device.device_kind() == "position"}
-        refs.update({self.mp + j: f"{r.device.ref_param}={gv[0, j]:.10g}" for j, r in enumerate(st.speed)})
-        return st.position + st.speed + [st.friction[j] for j in stuck], refs
+            rows = list(st.position)
+            refs = {j: f"{r.device.ref_param}={gp[0, j]:.10g}" for j, r in enumerate(st.position)
+                    if r.device.device_kind() == "position"}
+        else:
+            refs = {j: f"d/dt {r.device.ref_param}={gp[1, j]:.10g}" for j, r in enumerate(st.position)
+                    if r.device.device_kind() == "position"}
+            refs.update({self.mp + j: f"{r.device.ref_param}={gv[0, j]:.10g}" for j, r in enumerate(st.speed)})
+            rows = st.position + st.speed + [st.friction[j] for j in stuck]
+        by_row = {len(rows) + k: rel for k, rel in enumerate(relations)}
+        return rows + [rel.row for rel in relations], refs, by_row
 
     def _project_level(self, G, g, guess, fixed, level, t, describe):
         """``G x = g`` with the fixed entries kept and the least mass-weighted change of the others.
@@ -391,9 +423,9 @@ class CompiledSystem:
             out[free] += dx
         bad = np.nonzero(unmet(out))[0]
         if bad.size:
-            rows, refs = describe()
+            rows, refs, relations = describe()
             kept = np.where(fmask, fixed, np.nan)
-            raise constraint_start_conflict(self.structure, level, G, rows, bad, kept, refs, t)
+            raise constraint_start_conflict(self.structure, level, G, rows, bad, kept, refs, t, relations)
         return out
 
     @staticmethod
@@ -436,7 +468,7 @@ class CompiledSystem:
         modes = self.modes0 if modes is None else modes
         guess_x = np.where(np.isfinite(st.start_pos), st.start_pos, 0.0)
         guess_v = np.where(np.isfinite(st.start_vel), st.start_vel, 0.0)
-        x, v = self.project(t0, guess_x, guess_v, st.start_pos, st.start_vel, modes)
+        x, v = self.project(t0, guess_x, guess_v, st.start_pos, st.start_vel, modes, starts=(0, 1))
         z = self.state_start.copy()
         return self.assemble_y(t0, x, v, z, modes)
 

@@ -12,10 +12,20 @@ from ..component import Device, Param
 
 
 class TwoFlangeCompliant(Device):
-    """Base of compliant two-flange devices (MSL PartialCompliant)."""
+    """Base of compliant two-flange devices (MSL PartialCompliant).
+
+    ``phi_rel_start`` / ``w_rel_start`` fix the start values of ``phi_rel = phi_b - phi_a`` [rad] (m when
+    translational) and ``w_rel`` [rad/s] (m/s), as MSL's ``phi_rel(start=..., fixed=true)``: a pre-twisted
+    shaft or a preloaded spring without converting to the masses' start values. They are start values, not
+    the law's unstretched length ``phi_rel0``.
+    """
 
     kind = "compliant"
     flanges = (("flange_a", None), ("flange_b", None))
+    phi_rel_start = Param(None, optional=True, unit="rad",
+                          doc="start value of phi_rel = phi_b - phi_a, fixed when given (not the unstretched phi_rel0)")
+    w_rel_start = Param(None, optional=True, unit="rad/s", doc="start value of w_rel = w_b - w_a, fixed when given")
+    relative_start_params = ("phi_rel_start", "w_rel_start")
 
 
 class Spring(TwoFlangeCompliant):

@@ -128,6 +128,10 @@ class Clutch(_MuMixin, FrictionDevice):
                          doc="normalised normal force, <= 1 (<= 0: disengaged)",
                          bounds_note="; the normal force is fn_max * f_normalized, so 1 is the full force fn_max and "
                                      "values <= 0 disengage the device (mode Free). Raise fn_max for a larger force")
+    w_rel_start = Param(None, optional=True, unit="rad/s",
+                        doc="start value of the relative speed w_rel = w_b - w_a (Brake: w_flange - w_support), "
+                            "fixed when given")
+    relative_start_params = (None, "w_rel_start")
     flanges = (("flange_a", ROTATIONAL), ("flange_b", ROTATIONAL))
 
     def normal_force(self, t, left=False):
@@ -189,6 +193,9 @@ class FrictionContact(_MuMixin, FrictionDevice):
     mu_table = Param(None, check="table", optional=True, unit="(m/s, 1)", doc="(v_rel [m/s], mu) points for v_rel >= 0")
     peak = Param(1.0, check="positive", unit="1", doc="static over kinetic friction")
     fn = Param(check="signal", unit="N", doc="normal force (number, signal or callable)")
+    w_rel_start = Param(None, optional=True, unit="m/s",
+                        doc="start value of the relative speed v_rel = v_b - v_a, fixed when given")
+    relative_start_params = (None, "w_rel_start")
     flanges = (("flange_a", TRANSLATIONAL), ("flange_b", TRANSLATIONAL))
     default_domain = TRANSLATIONAL
 

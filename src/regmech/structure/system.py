@@ -47,6 +47,20 @@ class Row:
 
 
 @dataclass
+class StartRelation:
+    """A device's fixed start value of one of its rows: ``coefs . x + offset = value`` at level 0
+    (positions), ``coefs . v = value`` at level 1 (speeds)."""
+
+    row: Row
+    value: float
+    param: str
+
+    def label(self) -> str:
+        dev = self.row.device
+        return f"{type(dev).__name__} '{dev.name}' ({self.param}={self.value:.10g})"
+
+
+@dataclass
 class MechanicalStructure:
     model: object
     nodes: list[Node]
@@ -62,6 +76,9 @@ class MechanicalStructure:
     position: list[Row] = field(default_factory=list)   # level-2 constraints (rigid + Position)
     speed: list[Row] = field(default_factory=list)      # level-1 constraints (Speed)
     friction: list[Row] = field(default_factory=list)
+    #: the devices' fixed start values of their own coordinate (``Device.relative_starts``):
+    #: per level (0 position, 1 speed) a list of ``StartRelation``
+    start_relations: tuple = ((), ())
     dummy_x: np.ndarray = None
     dummy_v: np.ndarray = None
     levels: dict = field(default_factory=dict)
@@ -193,7 +210,7 @@ def _fixed_label(node: Node, level: int, value: float) -> str:
 
 
 def constraint_start_conflict(st: "MechanicalStructure", level: int, G: sp.spmatrix, rows: list, bad: np.ndarray,
-                              fixed: np.ndarray, refs: dict, t: float) -> StructureError:
+                              fixed: np.ndarray, refs: dict, t: float, relations: dict | None = None) -> StructureError:
     """The error for fixed start values that the constraint rows ``G`` (level 0: positions,
     1: velocities) cannot meet at ``t``, naming each conflicting group.
 
@@ -202,8 +219,10 @@ def constraint_start_conflict(st: "MechanicalStructure", level: int, G: sp.spmat
     masses whose fixed start values are involved, the devices (a source with its
     reference value ``refs[row]``, a device joined to the ground), and the fix.
     ``rows`` are the ``Row`` objects of ``G``'s rows; ``fixed`` holds the kept value of each
-    coordinate (NaN: free): start values, or values given to ``linearize(at=...)``.
+    coordinate (NaN: free): start values, or values given to ``linearize(at=...)``; ``relations``: the rows
+    that are devices' fixed start values (row index -> ``StartRelation``).
     """
+    relations = relations or {}
     from scipy.sparse.csgraph import connected_components
     m, n = G.shape
     C = sp.coo_matrix(G)
@@ -214,11 +233,14 @@ def constraint_start_conflict(st: "MechanicalStructure", level: int, G: sp.spmat
         members = np.nonzero(label[:m] == group)[0]
         coords = [k for k in np.nonzero(label[m:] == group)[0] if np.isfinite(fixed[k])]
         masses = [_fixed_label(st.coord_node[k], level, fixed[k]) for k in coords]
-        devices, sources, to_ground, stuck = [], [], False, False
+        devices, sources, to_ground, stuck, relating = [], [], False, False, []
         for i in members:
             dev = rows[i].device
             name = f"{type(dev).__name__} '{dev.name}'"
-            if i in refs:
+            if i in relations:
+                devices.append(relations[i].label())
+                relating.append(f"{relations[i].param} of {name}")
+            elif i in refs:
                 devices.append(f"{name} ({refs[i]})")
                 sources.append(name)
             elif dev.device_kind() == "friction":
@@ -246,10 +268,13 @@ def constraint_start_conflict(st: "MechanicalStructure", level: int, G: sp.spmat
         if stuck:
             fixes.append("a stuck friction device locks the masses on its sides together: give the speed on one "
                          "side only, or take a mode in which it slips")
-        if masses and ((len(masses) > 1 and not stuck) or not (sources or to_ground or stuck)):
+        if relating:
+            fixes.append(f"a device's start {what} ({', '.join(relating)}) fixes the masses it joins relative to "
+                         f"each other: drop it, or the start {what} of one of those masses, or make them agree")
+        if masses and not relating and ((len(masses) > 1 and not stuck) or not (sources or to_ground or stuck)):
             fixes.append(f"give the start {what} on one mass of each rigidly joined group only (or none); the "
                          f"devices fix the others (through a gear w_b = w_a / ratio)")
-        if not masses:
+        if not masses and not relating:
             fixes.append("check the references of the motion sources at that time (a speed reference must not "
                          "jump while a rigid group is held)")
     return start_conflict(level, problems, fixes, t)
@@ -461,6 +486,11 @@ def _build_structure(model) -> MechanicalStructure:
             raise StructureError(
                 f"{_device_label(row)} constrains only points fixed to the ground; it is redundant "
                 f"(remove it) or one of its flanges should go to a mass")
+    relations = ([], [])
+    for dev in devices:
+        for level, r, value, pname in dev.relative_starts():
+            relations[level].append(StartRelation(rows[dev.name][r], value, pname))
+    st.start_relations = (tuple(relations[0]), tuple(relations[1]))
     st.levels = _levels(st)
     npos = len(st.position)
     for j, row in enumerate(st.position):
