@@ -203,3 +203,65 @@ def test_dop853_contract_on_a_late_slip_reversal():
     ref = m.simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-10, atol=1e-12)
     res = m.simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", accuracy=1e-4)
     assert contract_error(res, ref, m, spec)[0] <= 1e-4
+
+
+def _gear_clutch_pair():
+    """Fuzz seed 37 (its unconnected translational pair kept: it shapes DOP853's steps): a light inertia J3
+    between a lossy gear and a clutch, so that both devices' relative speeds reach zero at one instant."""
+    from regmech.components import Mass
+    from regmech.components import BearingFriction, OneWayClutch
+    from regmech.signals import Constant
+    m = rm.Model("gear_clutch_pair")
+    J1 = m.add(Inertia("J1", J=0.6339))
+    drive = m.add(Torque("drive", tau=Sine(amplitude=0.568, freq_hz=19.08, phase=5.268, offset=-0.0349)))
+    lsd = m.add(LimitedSlipDifferential("lsd", ratio=3.792, preload=51.08, mu=0.1933, cgeo=0.05, peak=1.017,
+                                        J_side=0.03909))
+    owc = m.add(OneWayClutch("owc", mu=0.05747, peak=1.041, cgeo=0.3046, fn_max=4.846, f_normalized=Constant(0.3239)))
+    J2 = m.add(Inertia("J2", J=0.3824, w0=149.8))
+    J3 = m.add(Inertia("J3", J=0.006538))
+    gear = m.add(LossyGear("gear", ratio=-2.506, loss_table=[[0.0, 0.5716, 0.6332, 0.002615, 0.0003829],
+                                                             [0.1337, 0.6334, 0.6196, 0.0004427, 0.001575],
+                                                             [0.6574, 1.0, 1.0, 0.0, 0.0]]))
+    clutch = m.add(Clutch("clutch", mu=0.745, peak=1.108, cgeo=0.08567, fn_max=0.5408,
+                          f_normalized=Step(height=0.4831, start_time=0.3978, offset=0.2115)))
+    J4 = m.add(Inertia("J4", J=5.594, w0=0.0, phi0=-0.7871))
+    bearing = m.add(BearingFriction("bearing", tau_table=[(0.0, 0.02634), (1.099, 0.1458)], peak=1.02))
+    m.connect(drive.flange, J1.flange_b)
+    m.connect(lsd.carrier, J1.flange_a)
+    m.connect(owc.flange_a, lsd.right)
+    m.connect(owc.flange_b, J2.flange_a)
+    m.connect(gear.flange_a, J3.flange_a)
+    m.connect(gear.flange_b, lsd.left)
+    m.connect(clutch.flange_a, J4.flange_b)
+    m.connect(clutch.flange_b, J3.flange_b)
+    m.connect(bearing.flange, J4.flange_a)
+    M1 = m.add(Mass("M1", m=0.7887))
+    M2 = m.add(Mass("M2", m=1.843))
+    sd = m.add(SpringDamper("sd", c=1.576, d=0.008372, domain="translational"))
+    m.connect(sd.flange_a, M1.flange_a)
+    m.connect(sd.flange_b, M2.flange_b)
+    return m
+
+
+def test_simultaneous_zero_speeds_stop_every_sliding_device():
+    """Seed 37: at t = 0.1994 s the lossy gear's and the clutch's relative speeds reach zero together.
+    DOP853's event location reported the gear's root only; the clutch, at w_rel = 0 exactly and accelerating
+    through it, kept sliding Backward, its guard already past zero never fired, and from then on it drove the
+    motion: no event after 0.1994 s, the clutch and the differential's lock supplying power (-0.4 and -6.7 W)
+    and J3 ending at 16.9 rad/s against 0.0116 (ida, and DOP853 at rtol 1e-10). Now both solvers take the same
+    mode changes and agree on the speeds."""
+    runs = {}
+    for solver in ("ida", "scipy:DOP853"):
+        res = _gear_clutch_pair().simulate(0.25, dt_out=0.0023985, solver=solver, rtol=1e-8)
+        runs[solver] = res
+        for name in ("clutch", "lsd.lock", "bearing"):
+            p = res[f"{name}.power"]
+            assert p.min() >= -1e-6 * max(1.0, np.abs(p).max()), (solver, name, p.min())
+    a, b = runs["ida"], runs["scipy:DOP853"]
+    seq = lambda r: [(e.component, e.old_mode, e.new_mode) for e in r.events if e.kind == "mode"]  # noqa: E731
+    assert seq(a) == seq(b)
+    assert len(seq(a)) > 50
+    grid = output_grid(0.0, 0.25, 0.0023985)
+    for sig in ("J3.w", "J4.w", "J2.w"):
+        ya, yb = sample(a.t, a[sig], grid), sample(b.t, b[sig], grid)
+        assert np.max(np.abs(ya - yb)) <= 1e-4 * max(1.0, np.ptp(ya)), sig
