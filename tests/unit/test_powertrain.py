@@ -160,3 +160,45 @@ def test_road_load_parameter_errors():
         RoadLoad("r", v_eps=0.0)
     with pytest.raises(rm.ParameterError, match="RoadLoad 'r'.*c_d"):
         RoadLoad.for_vehicle("r", m=1000.0, c_r=0.01, c_d=-0.3, area=2.0)
+
+
+DRAG_MAP = [[0.0, 0.0], [600.0, -60.0]]      # rad/s, N m: T_drag = -0.1 w
+
+
+def test_engine_drag_at_closed_throttle_brakes_as_the_closed_form():
+    """Closed throttle, no load: J dw/dt = T_drag(w) = -0.1 w, so w = w0 exp(-0.1 t / J) (engine braking)."""
+    m = rm.Model("overrun")
+    engine = m.add(Engine("engine", torque_map=TORQUE_MAP, drag_map=DRAG_MAP, throttle=0.0))
+    crank = m.add(Inertia("crank", J=0.2, w0=300.0))
+    m.connect(engine.flange, crank.flange_a)
+    res = m.simulate(2.0, dt_out=0.01, solver="ida", **TIGHT)
+    exact = 300.0 * np.exp(-0.1 * res.t / 0.2)
+    assert np.max(np.abs(res["crank.w"] - exact)) < 1e-6 * 300.0
+    assert np.all(res["engine.tau"] <= 0.0)
+    # the engine absorbs what the crank loses: the source's work is negative
+    assert np.all(res["engine.power"] >= 0.0)
+
+
+def test_engine_blends_full_load_and_drag_by_the_throttle():
+    m = rm.Model("engine_sweep_drag")
+    engine = m.add(Engine("engine", torque_map=TORQUE_MAP, drag_map=DRAG_MAP, throttle=Ramp(height=1.0, duration=1.0)))
+    crank = m.add(Inertia("crank", J=0.2))
+    drive = m.add(Speed("speed", w_ref=Ramp(height=500.0, duration=1.0, offset=50.0)))
+    m.connect(engine.flange, crank.flange_a)
+    m.connect(drive.flange, crank.flange_b)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-8, solver="ida")
+    w, thr = res["crank.w"], np.clip(res.t, 0.0, 1.0)
+    full = np.interp(w, *np.array(TORQUE_MAP).T)
+    drag = np.interp(w, *np.array(DRAG_MAP).T)
+    assert np.allclose(res["engine.tau"], thr * full + (1 - thr) * drag, rtol=1e-6, atol=1e-6)
+
+
+def test_drag_map_must_oppose_the_rotation_and_engines_pickle_with_it():
+    with pytest.raises(rm.ParameterError, match=r"drag_map must oppose the rotation.*row 1"):
+        Engine("e", torque_map=TORQUE_MAP, drag_map=[[0.0, 0.0], [600.0, 60.0]])
+    e = Engine("e", torque_map=TORQUE_MAP, drag_map=DRAG_MAP)
+    f = pickle.loads(pickle.dumps(e))
+    assert np.array_equal(f.drag_map, DRAG_MAP) and type(f) is type(e)
+    assert type(Engine("g", torque_map=TORQUE_MAP)) is not type(e)      # another map pair, another kernel class
+    e.drag_map = [[0.0, 0.0], [600.0, -30.0]]
+    assert type(e)._drag[1, 1] == -30.0

@@ -187,7 +187,22 @@ class Brake(Clutch):
 
 class FrictionContact(_MuMixin, FrictionDevice):
     """Translational Coulomb contact between ``flange_a`` and ``flange_b`` (a Fixed
-    for a contact with the ground): ``f = mu(|v_rel|) * fn(t)``, static ``peak`` times that."""
+    for a contact with the ground): ``f = mu(|v_rel|) * fn(t)`` [N], static ``peak`` times that.
+
+    Sign convention (as every two-flange device): ``v_rel = v_b - v_a`` [m/s], the mode is
+    Forward (+1) while ``v_rel > 0``, Backward (-1) while ``v_rel < 0``, and ``f = flange_b.f``
+    is the force the contact applies to ``flange_b``'s side, opposing ``v_rel``. So the mode names
+    the direction of the *relative* motion, and which way a block slides in the world depends on
+    the side the ground is on: a block ``M`` moving in +s on a floor reads Forward with
+    ``connect(floor.flange, c.flange_a); connect(c.flange_b, M.flange_a)`` (``v_rel = v_M``) and
+    Backward with the flanges swapped (``v_rel = -v_M``); the physics is the same::
+
+        floor = m.add(Fixed("floor", domain="translational"))
+        c = m.add(FrictionContact("c", mu=0.3, fn=9.81 * 2.0))
+        M = m.add(Mass("M", m=2.0, v0=1.0))
+        m.connect(floor.flange, c.flange_a)      # the ground on flange_a
+        m.connect(c.flange_b, M.flange_a)        # v_rel = v_M: mode Forward (+1) while M slides in +s
+    """
 
     mu = Param(0.5, check="nonnegative", unit="1", doc="kinetic friction coefficient (ignored with mu_table)")
     mu_table = Param(None, check="table", optional=True, unit="(m/s, 1)", doc="(v_rel [m/s], mu) points for v_rel >= 0")
