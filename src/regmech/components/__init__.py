@@ -4,7 +4,7 @@ from .backlash import Backlash, ElastoBacklash
 from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
 from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, LossyGear, OneWayClutch
 from .gears import IdealGear
-from .gearing import Differential, LimitedSlipDifferential, LossyPlanetary, Planetary
+from .gearing import Differential, LimitedSlipDifferential, LossyDifferential, LossyPlanetary, Planetary
 from .inertial import Fixed, Inertia, Mass
 from .powertrain import Engine, RoadLoad
 from .wheel import MagicFormulaTyre, MagicFormulaWheel, Rolling, Wheel
@@ -13,7 +13,7 @@ from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
 __all__ = [
     "Fixed", "Inertia", "Mass",
     "Spring", "Damper", "SpringDamper", "Shaft", "TwoFlangeCompliant",
-    "IdealGear", "Differential", "Planetary", "LossyPlanetary", "LimitedSlipDifferential",
+    "IdealGear", "Differential", "Planetary", "LossyPlanetary", "LimitedSlipDifferential", "LossyDifferential",
     "Backlash", "ElastoBacklash",
     "Engine", "RoadLoad",
     "Clutch", "OneWayClutch", "LossyGear", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",

@@ -17,6 +17,7 @@ between the side gears) to the open differential.
 from __future__ import annotations
 
 from ..component import Device, Param, Subsystem
+from ..errors import ParameterError
 from ..ports import ROTATIONAL
 from .friction import Clutch, LossyGear
 from .inertial import Inertia
@@ -46,8 +47,8 @@ class Differential(Device):
     property): a wheel on ice carries almost no torque, hence neither does the
     other one, and the free wheel spins at twice the mean speed.
 
-    Efficiency (internal friction, the locking effect of limited-slip units)
-    is not included: it needs the stick/slip machinery and comes later.
+    Ideal (no losses): ``LossyDifferential`` adds a mesh efficiency by power-flow direction,
+    ``LimitedSlipDifferential`` the locking friction of a limited-slip unit.
     """
 
     kind = "rigid"
@@ -148,4 +149,37 @@ class LimitedSlipDifferential(Subsystem):
         self.link(right.flange_a, clutch.flange_b)
 
 
-__all__ = ["Differential", "Planetary", "LossyPlanetary", "LimitedSlipDifferential"]
+class LossyDifferential(Subsystem):
+    """Open differential with a mesh efficiency by power-flow direction (final drive): a ``LossyGear``
+    (the pinion-ring mesh, ``ratio``), the ring gear's inertia ``J_ring``, and a bare ``Differential``
+    (ratio 1) that splits the ring's torque equally to the sides.
+
+    Ports ``carrier`` (the pinion shaft: input), ``left``, ``right``. With the pinion driving (traction)
+    the sides receive ``eta_drive`` of the pinion's power; with the wheels driving (overrun, engine
+    braking) the pinion receives ``eta_coast`` of theirs; the change of driving side is an event
+    (``res.events``, kind "driving side") as on every ``LossyGear``; ``mesh.power`` is the loss [W].
+    ``Differential`` alone stays ideal; ``LimitedSlipDifferential`` adds the locking friction instead.
+    """
+
+    ratio = Param(check="nonzero", unit="1", doc="pinion angle / ring angle (the final-drive ratio)")
+    eta_drive = Param(1.0, check="positive", unit="1", doc="mesh efficiency with the pinion driving, <= 1")
+    eta_coast = Param(1.0, check="positive", unit="1", doc="mesh efficiency with the wheels driving, <= 1")
+    J_ring = Param(0.05, check="positive", unit="kg m^2", doc="inertia of the ring gear with the differential case")
+    ports = {"carrier": "mesh.flange_a", "left": "diff.left", "right": "diff.right"}
+
+    def validate(self):
+        for pname in ("eta_drive", "eta_coast"):
+            if getattr(self, pname) > 1.0:
+                raise ParameterError(f"LossyDifferential '{self.name}': {pname} is an efficiency and must lie in "
+                                     f"(0, 1], got {getattr(self, pname)}")
+
+    def build(self):
+        mesh = self.part(LossyGear("mesh", ratio=self.ratio, loss_table=[[0.0, self.eta_drive, self.eta_coast,
+                                                                          0.0, 0.0]]))
+        ring = self.part(Inertia("ring", J=self.J_ring))
+        diff = self.part(Differential("diff", ratio=1.0))
+        self.link(mesh.flange_b, ring.flange_a)
+        self.link(ring.flange_b, diff.carrier)
+
+
+__all__ = ["Differential", "Planetary", "LossyPlanetary", "LimitedSlipDifferential", "LossyDifferential"]
