@@ -25,13 +25,13 @@ def _demo(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     runs = [
-        ("first", first(), 1.0, ["inertia1.w", "inertia2.w", "inertia3.w"], ["spring.tau", "idealGear.tau"]),
+        ("first", first(), 1.0, ["inertia1.w", "inertia2.w", "inertia3.w"], ["spring.tau", "idealGear.tau"], None),
         ("coupled_clutches", coupled_clutches(), 1.5, ["J1.w", "J2.w", "J3.w", "J4.w"],
-         ["clutch1.tau", "clutch2.tau", "clutch3.tau"]),
-        ("vehicle_launch", vehicle_launch(), 3.0, ["flywheel.w", "gearbox_in.w", "wheel_left.J.w"],
-         ["clutch.tau", "driveshaft.tau"]),
+         ["clutch1.tau", "clutch2.tau", "clutch3.tau"], None),
+        ("vehicle_launch", vehicle_launch(), 3.0, ["flywheel.w", "gearbox_in.w", "wheel_left.J.w", "body.v"],
+         ["clutch.tau", "driveshaft.tau"], {"w": "rpm", "v": "km/h"}),
     ]
-    for name, model, t_end, speeds, torques in runs:
+    for name, model, t_end, speeds, torques, units in runs:
         t0 = time.perf_counter()
         opts = {"rtol": args.rtol} if args.rtol is not None else {}
         # --rtol sets a named solver's tolerance: with the default auto it means IDA's (as before auto)
@@ -41,16 +41,13 @@ def _demo(args) -> int:
         csv_path = out / f"{name}.csv"
         res.to_csv(csv_path, speeds + torques + [n for n in res.names if n.endswith(".mode")])
         png_path = out / f"{name}.png"
+        from regmech.errors import RegmechError
         try:
-            import matplotlib
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-            fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-            res.plot(speeds, ax=ax1, title=f"{model.name}: speeds [rad/s]")
-            res.plot(torques, ax=ax2, title="torques [N m]")
-            fig.savefig(png_path, dpi=120, bbox_inches="tight")
-            plt.close(fig)
-        except ImportError:
+            # one axis per unit (speeds, torques), a mode strip per friction device, the mode changes numbered
+            # and listed under the plot: a reader needs no code to follow it
+            res.plot(speeds + torques, path=png_path, events="annotate", units=units,
+                     title=f"{model.name}: {t_end:g} s, {res.stats.solver}")
+        except RegmechError:                 # matplotlib missing
             png_path = None
         print(f"{model.name}: simulated {t_end} s in {wall * 1e3:.0f} ms ({res.stats.rhs_calls} residual calls, "
               f"{len(res.events)} mode changes)")
