@@ -1,4 +1,7 @@
-"""Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``, ``regmech check``.
+"""Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``, ``regmech check``, ``regmech draw``.
+
+``regmech draw SCENE|FILE.py [--out FILE.png]`` writes the dynamic scheme
+(``Model.draw``): masses as blocks, the devices between them by kind.
 
 ``regmech check SCENE|FILE.py [--summary]`` prints the regularity report of a
 scene or of the models a Python file defines (exit status 1 when a model
@@ -137,6 +140,18 @@ def _check(args) -> int:
     return status
 
 
+def _draw(args) -> int:
+    """``regmech draw SCENE|FILE.py --out FILE.png``: the dynamic scheme of a scene or of the models of a
+    file (several models: FILE-<model>.png)."""
+    models = _load_models(args.target)
+    out = Path(args.out)
+    for model in models:
+        path = out if len(models) == 1 else out.with_name(f"{out.stem}-{model.name}{out.suffix or '.png'}")
+        model.draw(path=path)
+        print(f"{model.name}: {len(model.components)} components, scheme written to {path}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "modes":
@@ -164,12 +179,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("target", help="scene name (regmech scenes lists them) or a Python file defining a Model")
     p.add_argument("--summary", action="store_true", help="list the components by name (m.summary())")
     p.set_defaults(func=_check)
+    p = sub.add_parser("draw", help="draw the dynamic scheme of a scene or of the models in a .py file (PNG)")
+    p.add_argument("target", help="scene name (regmech scenes lists them) or a Python file defining a Model")
+    p.add_argument("--out", default=None, help="image file (.png, .svg, .pdf; default: <target>.png)")
+    p.set_defaults(func=_draw)
     p = sub.add_parser("scenes", help="list the ready-made scenes")
     p.set_defaults(func=_scenes)
     sub.add_parser("modes", help="natural frequencies and mode shapes of a scene (regmech modes -h)")
     sub.add_parser("sweep", help="parameter study of a scene (regmech sweep -h)")
     sub.add_parser("bench", help="work-precision benchmark of the solvers (regmech bench -h)")
     args = parser.parse_args(argv)
+    if args.cmd == "draw" and args.out is None:
+        args.out = f"{Path(args.target).stem}.png"
     from regmech.errors import RegmechError
     try:
         return args.func(args)
