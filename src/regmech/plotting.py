@@ -199,12 +199,8 @@ def plot_result(res, names=None, *, ax=None, path=None, title=None, events=True,
     axes = fig.subplots(n_ax + n_strip, 1, sharex=True, squeeze=False,
                         gridspec_kw={"height_ratios": heights, "hspace": 0.12})[:, 0]
     for a, (u, ns) in zip(axes, groups.items()):
-        _draw_signals(res, a, ns, units, logy)
+        _draw_signals(res, a, ns, units, logy, more=hidden.get(u))
         a.set_ylabel(_axis_label(res, ns, units))
-        if u in hidden:
-            more = hidden[u]
-            a.text(0.0, 1.01, f"{len(more)} more not shown ({', '.join(more[:3])}{', ...' if len(more) > 3 else ''});"
-                   f" pass names=[...] to choose", transform=a.transAxes, fontsize=7, color="0.35", va="bottom")
     for a, dev in zip(axes[n_ax:], strips):
         _draw_mode_strip(res, a, dev)
     if n_strip:
@@ -233,7 +229,7 @@ def _axis_label(res, names, units) -> str:
     return ", ".join(found)
 
 
-def _draw_signals(res, ax, names, units, logy):
+def _draw_signals(res, ax, names, units, logy, more=None):
     for n in names:
         unit = res.display_unit(n, units)
         y = res.get(n, unit=unit) if unit != res.unit(n) else res[n]
@@ -244,7 +240,13 @@ def _draw_signals(res, ax, names, units, logy):
     if logy:
         ax.set_yscale("log")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False, borderaxespad=0.0)
+    handles, labels = ax.get_legend_handles_labels()
+    if more:                             # the default selection left signals out: say which, in the legend
+        from matplotlib.lines import Line2D
+        handles.append(Line2D([], [], ls="none"))
+        labels.append(f"+{len(more)} more, e.g. {', '.join(more[:2])}\n(pass names=[...] to choose)")
+    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False,
+              borderaxespad=0.0)
 
 
 def _draw_mode_strip(res, ax, dev):

@@ -202,3 +202,10 @@ def test_modes_cli_writes_labelled_plots_and_campbell(tmp_path, capsys):
         assert (tmp_path / f).stat().st_size > 0
     assert "resonance speeds" in out
     assert modes_main(["first", "--out", str(tmp_path), "--orders", "x"]) == 2
+
+
+def test_default_selection_says_what_it_left_out(tmp_path):
+    res = _scene("train").simulate(0.2, dt_out=0.01, solver="ida")
+    fig = res.plot(path=tmp_path / "t.png")
+    entries = _legend(fig.axes[0])
+    assert len(entries) == 9 and entries[-1].startswith("+2 more, e.g. car8.v, car9.v")
