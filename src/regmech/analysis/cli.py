@@ -136,16 +136,23 @@ def _plots(result, lin, out: Path, fmax, harmonic_response) -> None:
     from ..errors import RegmechError
     from .plots import plot_mode_shapes
     try:
-        plot_mode_shapes(result, path=out / "mode_shapes.png")
+        from ..plotting import require_matplotlib
+        require_matplotlib("regmech modes plots")
     except RegmechError as exc:          # matplotlib missing
         print(f"no plots: {exc}")
         return
-    print(f"plot:   {out / 'mode_shapes.png'}")
+    if result.all_rigid:
+        print("no mode-shape plot: every mode is a rigid-body mode at this operating point")
+    else:
+        plot_mode_shapes(result, path=out / "mode_shapes.png")
+        print(f"plot:   {out / 'mode_shapes.png'}")
     if not lin.all_inputs:
         print("no response plot: the scene has no input source")
         return
     f_el = result.frequencies_hz[~result.rigid]
-    top = fmax or (2.0 * f_el.max() if f_el.size else 10.0)
+    # up to twice the 12th elastic frequency: the response of a large model would otherwise span its
+    # stiffest link, far above the modes a reader looks at (--fmax sets it)
+    top = fmax or (2.0 * np.sort(f_el)[min(f_el.size, 12) - 1] if f_el.size else 10.0)
     freqs = np.linspace(top / 1000.0, top, 800)
     speeds = [f"{name}.{'w' if name + '.w' in lin.outputs() else 'v'}" for name in lin.mass_names][:8]
     try:
@@ -154,8 +161,8 @@ def _plots(result, lin, out: Path, fmax, harmonic_response) -> None:
         print(f"no response plot: {exc}")
         return
     resp.plot(path=out / "response.png")
-    print(f"plot:   {out / 'response.png'} (mass speeds per unit amplitude of {lin.all_inputs[0]}, natural "
-          f"frequencies marked)")
+    print(f"plot:   {out / 'response.png'} (mass speeds per unit amplitude of {lin.all_inputs[0]}"
+          + (")" if result.all_rigid else ", natural frequencies marked)"))
 
 
 def _orders_and_speeds(model, orders, speed):

@@ -68,7 +68,8 @@ def _top_labels(ax, items, span):
         else:
             clusters.append((x, [lab]))
     for x, labs in clusters:
-        ax.text(x, 1.01, ",".join(labs), transform=trans, fontsize=7.5, ha="center", va="bottom", color="0.15",
+        text = ",".join(labs) if len(labs) <= 3 else f"{labs[0]}-{labs[-1]}"
+        ax.text(x, 1.01, text, transform=trans, fontsize=7.5, ha="center", va="bottom", color="0.15",
                 fontweight="bold")
 
 
@@ -83,16 +84,26 @@ def _key(ax, lines, offset=-34):
                     color="0.15")
 
 
+#: at most this many natural frequencies (or resonance speeds) are marked in one plot; the rest are counted
+MAX_MARKS = 12
+
+
 def _mark_naturals(axes, marks, label_ax, key_ax, span):
     """Natural frequencies as dashed vertical lines through ``axes``, their mode numbers above
-    ``label_ax``, the frequencies listed under ``key_ax``."""
+    ``label_ax``, the frequencies listed under ``key_ax`` (the lowest ``MAX_MARKS``; the others counted)."""
     if not marks:
         return
+    rest = marks[MAX_MARKS:]
+    marks = marks[:MAX_MARKS]
     for a in axes:
         for _, f in marks:
             a.axvline(f, color="0.35", lw=0.8, ls="--", zorder=0.5)
     _top_labels(label_ax, [(f, str(m)) for m, f in marks], span)
-    _key(key_ax, [f"mode {m:>2}: {f:.4g} Hz" for m, f in marks])
+    lines = [f"mode {m:>2}: {f:.4g} Hz" for m, f in marks]
+    if rest:
+        lines.append(f"modes {rest[0][0]}-{rest[-1][0]} ({len(rest)}, {rest[0][1]:.4g} to {rest[-1][1]:.4g} Hz): "
+                     f"not marked")
+    _key(key_ax, lines)
 
 
 def _log_values(amp):
@@ -109,16 +120,23 @@ def plot_mode_shapes(result, path=None, n_modes: int = 6, include_rigid: bool = 
     """Mode shapes (max = 1) over the masses, one line per mode."""
     table = result.table(normalize=True)
     rows = [i for i in range(len(result.omega2)) if include_rigid or not result.rigid[i]][:n_modes]
-    fig, axes = _figure(figsize=(max(6.0, 0.6 * len(table.columns) + 3), 5))
+    n = len(table.columns)
+    fig, axes = _figure(figsize=(min(16.0, max(6.0, 0.6 * n + 3)), 5))
     ax = axes[0, 0]
-    x = np.arange(len(table.columns))
+    x = np.arange(n)
     for i in rows:
-        ax.plot(x, table.data[i], marker="o", label=f"mode {i + 1}: {result.frequencies_hz[i]:.4g} Hz")
+        ax.plot(x, table.data[i], marker="o" if n <= 40 else None,
+                label=f"mode {i + 1}: {result.frequencies_hz[i]:.4g} Hz")
     ax.axhline(0.0, color="0.6", lw=0.8)
-    ax.set_xticks(x)
-    ax.set_xticklabels(table.columns, rotation=45 if len(x) > 6 else 0, ha="right" if len(x) > 6 else "center")
-    ax.set_ylabel("displacement of each mass [rad or m], largest = 1")
+    step = int(np.ceil(n / 40))          # a long model: every step-th mass named, so that the names stay legible
+    ax.set_xticks(x[::step])
+    ax.set_xticklabels(table.columns[::step], rotation=45 if n > 6 else 0, ha="right" if n > 6 else "center",
+                       fontsize=8 if n > 20 else None)
     lin = result.lin
+    comps = lin.compiled.model.components
+    kinds = {getattr(comps.get(n), "mass_param", None) for n in table.columns}
+    unit = "rad" if kinds == {"J"} else "m" if kinds == {"m"} else "rad or m"
+    ax.set_ylabel(f"displacement of each mass [{unit}], largest = 1")
     n_rigid = int(np.sum(result.rigid))
     skipped = len([i for i in range(len(result.omega2)) if include_rigid or not result.rigid[i]]) - len(rows)
     notes = []
@@ -231,7 +249,9 @@ def plot_order_sweep(sweep, path=None, units=None):
     fig, ax = _figure(n, 1, figsize=(10, 3.2 * n + 1.0), sharex=True)
     out_units = getattr(sweep, "units", {}) or {}
     rpm = sweep.speeds_hz * 60.0
-    res_speeds = sweep.resonance_speeds() if hasattr(sweep, "resonance_speeds") else []
+    res_speeds = sorted(sweep.resonance_speeds() if hasattr(sweep, "resonance_speeds") else [], key=lambda c: c[3])
+    more = len(res_speeds) - MAX_MARKS
+    res_speeds = res_speeds[:MAX_MARKS]
     for j, name in enumerate(sweep.outputs):
         a = ax[j, 0]
         shown, f = _shown(out_units.get(name), units, name)
@@ -243,11 +263,11 @@ def plot_order_sweep(sweep, path=None, units=None):
         a.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
         for order, mode, _, n_rpm in res_speeds:
             a.axvline(n_rpm, color="0.35", lw=0.8, ls=":", zorder=0.5)
-    res_speeds = sorted(res_speeds, key=lambda c: c[3])
     if res_speeds:
         _top_labels(ax[0, 0], [(c[3], str(i)) for i, c in enumerate(res_speeds, start=1)], rpm[-1] - rpm[0])
         _key(ax[-1, 0], [f"{i:>2}  {c[3]:7.0f} rpm  order {c[0]:g} meets mode {c[1]} ({c[2]:.4g} Hz)"
-                         for i, c in enumerate(res_speeds, start=1)])
+                         for i, c in enumerate(res_speeds, start=1)]
+             + ([f"    {more} more above {res_speeds[-1][3]:.0f} rpm not marked"] if more > 0 else []))
     ax[-1, 0].set_xlabel("engine speed [rpm]")
     in_unit = getattr(sweep, "input_unit", None)
     title = f"{getattr(sweep, 'model_name', '')}: order response to {getattr(sweep, 'input_name', '') or 'the input'}" \
