@@ -359,8 +359,6 @@ def _device(ax, x, y, nd, font, label_above=False):
         ax.text(x, y, type(nd["component"]).__name__[:12] if nd["component"] is not None else "", ha="center",
                 va="center", fontsize=font - 2.0,
                 color=col, zorder=5)
-    if nd.get("friction") and kind != "friction":      # a lossy gear: a gear that sticks and slips
-        ax.plot([x], [y + s + 0.05], marker="v", color=FRICTION_COLOUR, ms=4, zorder=6)
     if label_above:
         ax.text(x, y + s + 0.04, nd["label"], ha="center", va="bottom", fontsize=font - 0.5, color=col, zorder=6,
                 linespacing=1.0)
@@ -385,6 +383,7 @@ def _key(sch):
             ("rigid", False, "rigid link"), ("source", False, "source: torque, force"),
             ("motion", False, "prescribed speed, position"), ("box", False, "other device (class)"),
             ("point", False, "massless point (not regular)")]
+    # red symbols: devices that stick and slip (a lossy gear is a red gear)
     out = [r for r in rows if r[0] in present]
     if any(n.get("friction") for n in sch.nodes.values()):
         out.append(("friction", True, "friction device (red)"))
