@@ -1,4 +1,7 @@
-"""Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``, ``regmech check``.
+"""Command line: ``regmech demo``, ``regmech modes``, ``regmech scenes``, ``regmech check``, ``regmech draw``.
+
+``regmech draw SCENE|FILE.py [--out FILE.png]`` writes the dynamic scheme
+(``Model.draw``): masses as blocks, the devices between them by kind.
 
 ``regmech check SCENE|FILE.py [--summary]`` prints the regularity report of a
 scene or of the models a Python file defines (exit status 1 when a model
@@ -25,13 +28,13 @@ def _demo(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     runs = [
-        ("first", first(), 1.0, ["inertia1.w", "inertia2.w", "inertia3.w"], ["spring.tau", "idealGear.tau"]),
+        ("first", first(), 1.0, ["inertia1.w", "inertia2.w", "inertia3.w"], ["spring.tau", "idealGear.tau"], None),
         ("coupled_clutches", coupled_clutches(), 1.5, ["J1.w", "J2.w", "J3.w", "J4.w"],
-         ["clutch1.tau", "clutch2.tau", "clutch3.tau"]),
-        ("vehicle_launch", vehicle_launch(), 3.0, ["flywheel.w", "gearbox_in.w", "wheel_left.J.w"],
-         ["clutch.tau", "driveshaft.tau"]),
+         ["clutch1.tau", "clutch2.tau", "clutch3.tau"], None),
+        ("vehicle_launch", vehicle_launch(), 3.0, ["flywheel.w", "gearbox_in.w", "wheel_left.J.w", "body.v"],
+         ["clutch.tau", "driveshaft.tau"], {"w": "rpm", "v": "km/h"}),
     ]
-    for name, model, t_end, speeds, torques in runs:
+    for name, model, t_end, speeds, torques, units in runs:
         t0 = time.perf_counter()
         opts = {"rtol": args.rtol} if args.rtol is not None else {}
         # --rtol sets a named solver's tolerance: with the default auto it means IDA's (as before auto)
@@ -41,16 +44,13 @@ def _demo(args) -> int:
         csv_path = out / f"{name}.csv"
         res.to_csv(csv_path, speeds + torques + [n for n in res.names if n.endswith(".mode")])
         png_path = out / f"{name}.png"
+        from regmech.errors import RegmechError
         try:
-            import matplotlib
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-            fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-            res.plot(speeds, ax=ax1, title=f"{model.name}: speeds [rad/s]")
-            res.plot(torques, ax=ax2, title="torques [N m]")
-            fig.savefig(png_path, dpi=120, bbox_inches="tight")
-            plt.close(fig)
-        except ImportError:
+            # one axis per unit (speeds, torques), a mode strip per friction device, the mode changes numbered
+            # and listed under the plot: a reader needs no code to follow it
+            res.plot(speeds + torques, path=png_path, events="annotate", units=units,
+                     title=f"{model.name}: {t_end:g} s, {res.stats.solver}")
+        except RegmechError:                 # matplotlib missing
             png_path = None
         print(f"{model.name}: simulated {t_end} s in {wall * 1e3:.0f} ms ({res.stats.rhs_calls} residual calls, "
               f"{len(res.events)} mode changes)")
@@ -140,6 +140,18 @@ def _check(args) -> int:
     return status
 
 
+def _draw(args) -> int:
+    """``regmech draw SCENE|FILE.py --out FILE.png``: the dynamic scheme of a scene or of the models of a
+    file (several models: FILE-<model>.png)."""
+    models = _load_models(args.target)
+    out = Path(args.out)
+    for model in models:
+        path = out if len(models) == 1 else out.with_name(f"{out.stem}-{model.name}{out.suffix or '.png'}")
+        model.draw(path=path)
+        print(f"{model.name}: {len(model.components)} components, scheme written to {path}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "modes":
@@ -167,12 +179,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("target", help="scene name (regmech scenes lists them) or a Python file defining a Model")
     p.add_argument("--summary", action="store_true", help="list the components by name (m.summary())")
     p.set_defaults(func=_check)
+    p = sub.add_parser("draw", help="draw the dynamic scheme of a scene or of the models in a .py file (PNG)")
+    p.add_argument("target", help="scene name (regmech scenes lists them) or a Python file defining a Model")
+    p.add_argument("--out", default=None, help="image file (.png, .svg, .pdf; default: <target>.png)")
+    p.set_defaults(func=_draw)
     p = sub.add_parser("scenes", help="list the ready-made scenes")
     p.set_defaults(func=_scenes)
     sub.add_parser("modes", help="natural frequencies and mode shapes of a scene (regmech modes -h)")
     sub.add_parser("sweep", help="parameter study of a scene (regmech sweep -h)")
     sub.add_parser("bench", help="work-precision benchmark of the solvers (regmech bench -h)")
     args = parser.parse_args(argv)
+    if args.cmd == "draw" and args.out is None:
+        args.out = f"{Path(args.target).stem}.png"
     from regmech.errors import RegmechError
     try:
         return args.func(args)

@@ -222,6 +222,14 @@ class Model:
             self._compiled = compile_model(self)
         return self._compiled
 
+    def draw(self, path=None, ax=None, max_columns: int = 18, figsize=None, title=None):
+        """Draw the dynamic scheme: masses as blocks, the devices between them by kind with their names
+        (spring, damper, gear, source, friction devices in red), the ground, laid out left to right along
+        the power path (``regmech.draw``). Needs matplotlib (``pip install 'regmech[plot]'``). Returns the
+        figure; ``path`` writes it (PNG, SVG, PDF by the suffix)."""
+        from .draw import draw_model
+        return draw_model(self, path=path, ax=ax, max_columns=max_columns, figsize=figsize, title=title)
+
     def simulate(self, t_end: float, dt_out: float | None = None, solver: str = "auto", *,
                  accuracy: float | None = None, t_start: float = 0.0, **options):
         """Simulate from ``t_start`` to ``t_end``; returns a ``Result``.

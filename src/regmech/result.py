@@ -103,18 +103,6 @@ class Stats:
                 f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}{auto}")
 
 
-def _axis_label(pairs) -> str:
-    """y-axis label for signals given as (SI unit, unit shown): ``speed [rpm]``; all of them, joined, when
-    they differ (``speed [rad/s], torque [N m]``)."""
-    found = []
-    for si, shown in pairs:
-        what = units_mod.QUANTITIES.get(si or "", "value")
-        text = f"{what} [{shown}]" if shown and shown != "1" else (what if shown else "value (unit unknown)")
-        if text not in found:
-            found.append(text)
-    return ", ".join(found)
-
-
 class Result:
     def __init__(self, trajectory, events=(), stats: Stats | None = None, model_name: str = ""):
         self._traj = trajectory
@@ -233,7 +221,7 @@ class Result:
         keyed by signal name, by the variable (last part of the name, ``"w"``), or by SI unit
         (``"rad/s"``), looked up in that order; otherwise its SI unit."""
         si = self.unit(name)
-        if units is None:
+        if units is None or (isinstance(units, str) and units.strip().upper() == "SI"):
             return si
         if isinstance(units, str):
             return units_mod.normalise(units)
@@ -288,41 +276,26 @@ class Result:
             for row in zip(*(v for _, v in cols)):
                 w.writerow([repr(float(v)) for v in row])
 
-    def plot(self, names=None, ax=None, path=None, title=None, mark_events=True, units=None):
-        """Plot signals against time; mode changes are marked by vertical lines. ``units``: display units
-        as in ``to_dataframe`` (``{"w": "rpm"}``); the y axis is labelled with the units shown."""
-        try:
-            import matplotlib
-            if path is not None and ax is None:
-                matplotlib.use("Agg", force=False)
-            import matplotlib.pyplot as plt
-        except ImportError as exc:  # pragma: no cover - optional
-            raise RegmechError("plot() needs matplotlib: pip install 'regmech[plot]'") from exc
-        if names is None:
-            names = [n for n in self.names if n.endswith((".w", ".v"))][:8]
-        if isinstance(names, str):
-            names = [names]
-        fig = None
-        if ax is None:
-            fig, ax = plt.subplots(figsize=(9, 5))
-        shown = []
-        for n in names:
-            unit = self.display_unit(n, units)
-            shown.append((self.unit(n), unit))
-            ax.plot(self.t, self.get(n, unit=unit) if unit != self.unit(n) else self[n], label=n)
-        ax.set_ylabel(_axis_label(shown))
-        if mark_events:
-            for i, ev in enumerate(self.events):
-                ax.axvline(ev.t, color="0.6", lw=0.7, ls="--", label="mode change" if i == 0 else None)
-        ax.set_xlabel("time [s]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-        ax.set_title(title or self.model_name)
-        if path is not None:
-            (fig or ax.figure).savefig(path, dpi=120, bbox_inches="tight")
-            if fig is not None:
-                plt.close(fig)
-        return ax
+    def plot(self, names=None, ax=None, path=None, title=None, mark_events=True, units=None, *, events=None,
+             modes=None, logy=False, figsize=None):
+        """Plot signals against time, one axis per unit shown, and a mode strip per friction device.
+
+        ``names``: the signals (default: the masses' speeds, then the devices' and sources' torques and
+        forces, in model order; ``regmech.plotting``). ``units``: display units as in ``to_dataframe``
+        (``{"w": "rpm"}``, ``"SI"``); every axis is labelled with its quantity and unit
+        (``speed [rpm]``). ``modes``: the devices whose mode strip is drawn (default every device with a
+        ``mode`` signal; False none). ``events``: True draws the mode changes as vertical lines,
+        ``"annotate"`` labels each with device and transition (``clutch: Free -> Backward``), False
+        neither (``mark_events`` is the older name of the same switch). ``logy``: logarithmic y axes;
+        signals <= 0 are said so in the legend. ``path``: write a PNG. ``figsize`` (inches).
+
+        Returns the matplotlib ``Figure`` (its ``axes``: the signal axes, then the strips); with ``ax``
+        given, draws every signal on that one axis (no strips) and returns it."""
+        from .plotting import plot_result
+        if events is None:
+            events = mark_events
+        return plot_result(self, names, ax=ax, path=path, title=title, events=events, units=units, modes=modes,
+                           logy=logy, figsize=figsize)
 
     def save(self, path, names=None):
         """Write the result to a MATLAB ``.mat`` file (time, every signal in SI with its name and unit,

@@ -193,11 +193,15 @@ def test_plot_labels_the_y_axis_with_the_units_shown():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     res = _run("coupled_clutches", 0.1)
-    ax = res.plot(["J1.w", "J2.w"], units={"w": "rpm"})
+    fig = res.plot(["J1.w", "J2.w"], units={"w": "rpm"}, modes=False)
+    (ax,) = fig.axes
     assert ax.get_ylabel() == "speed [rpm]"
     np.testing.assert_allclose(ax.lines[0].get_ydata(), res.get("J1.w", unit="rpm"))
-    ax2 = res.plot(["J1.w", "clutch1.tau"])
-    assert ax2.get_ylabel() == "speed [rad/s], torque [N m]"
+    fig2 = res.plot(["J1.w", "clutch1.tau"], modes=False)          # one axis per unit
+    assert [a.get_ylabel() for a in fig2.axes] == ["speed [rad/s]", "torque [N m]"]
+    _, one = plt.subplots()
+    assert res.plot(["J1.w", "clutch1.tau"], ax=one) is one          # a given axis holds them all
+    assert one.get_ylabel() == "speed [rad/s], torque [N m]"
     plt.close("all")
 
 

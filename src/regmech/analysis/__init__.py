@@ -6,9 +6,12 @@
 * ``sensitivities(modal_result)``: d f / d p for every inertia and stiffness;
 * ``harmonic_response(lin, outputs, freqs_hz, inputs)``: amplitude and phase;
   ``multi_harmonic_response`` and ``order_sweep`` for engine-order spectra;
+* ``campbell(modes, orders, speed_rpm)``: natural frequencies and engine orders against speed,
+  the resonance speeds where they cross (``ModalResult.campbell``, ``OrderSweep.campbell``);
 * ``Table``: the labelled tables these return (``.to_dataframe()`` with pandas).
 """
 
+from .campbell import CampbellDiagram, campbell
 from .harmonic import (FrequencyResponse, MultiHarmonicResponse, OrderSweep, harmonic_response,
                        multi_harmonic_response, order_sweep)
 from .modal import DampedModes, ModalResult, damped_modes, modal
@@ -20,5 +23,6 @@ __all__ = [
     "sensitivities", "Sensitivities",
     "harmonic_response", "multi_harmonic_response", "order_sweep",
     "FrequencyResponse", "MultiHarmonicResponse", "OrderSweep",
+    "campbell", "CampbellDiagram",
     "Table",
 ]

@@ -123,6 +123,13 @@ class FrequencyResponse:
     outputs: list
     values: np.ndarray
     inputs: dict = field(default_factory=dict)
+    #: SI unit of every output (``"rad/s"``, ``"N m"``; None when unknown) and of every input (``"N m"``)
+    units: dict = field(default_factory=dict)
+    input_units: dict = field(default_factory=dict)
+    #: undamped natural frequencies of the linear model [Hz], rigid-body modes as 0 (modal numbering);
+    #: marked in the plot; None when not computed (a model too large for all modes at once)
+    natural_hz: np.ndarray | None = None
+    model_name: str = ""
 
     def _col(self, name):
         try:
@@ -149,9 +156,12 @@ class FrequencyResponse:
     def to_dataframe(self):
         return self.table().to_dataframe()
 
-    def plot(self, path=None, ax=None):
+    def plot(self, path=None, ax=None, units=None):
+        """Amplitude (log, one axis per output unit, labelled ``speed amplitude [rad/s per N m]``) and phase
+        against frequency, the natural frequencies marked; ``units`` display units of the outputs
+        (``{"w": "rpm"}``). Returns the figure."""
         from .plots import plot_frequency_response
-        return plot_frequency_response(self, path=path, axes=ax)
+        return plot_frequency_response(self, path=path, axes=ax, units=units)
 
 
 def harmonic_response(lin, outputs, freqs_hz, inputs=None) -> FrequencyResponse:
@@ -169,7 +179,48 @@ def harmonic_response(lin, outputs, freqs_hz, inputs=None) -> FrequencyResponse:
         raise ParameterError("harmonic_response: freqs_hz must be finite frequencies >= 0 [Hz]")
     exc = _Excitation(lin, inputs)
     Y = _response(lin, outputs, 2 * np.pi * freqs, exc)
-    return FrequencyResponse(freqs_hz=freqs, outputs=outputs, values=Y, inputs=exc.inputs)
+    return FrequencyResponse(freqs_hz=freqs, outputs=outputs, values=Y, inputs=exc.inputs,
+                             units={n: output_unit(lin, n) for n in outputs},
+                             input_units={n: input_unit(lin, n) for n in exc.inputs},
+                             natural_hz=natural_frequencies(lin), model_name=lin.compiled.model.name)
+
+
+#: the natural frequencies shown in response plots are computed up to this many coordinates (all modes,
+#: dense: milliseconds at this size); above, the plots go without them
+MARK_MODES_MAX = 300
+
+
+def natural_frequencies(lin) -> np.ndarray | None:
+    """Undamped natural frequencies [Hz] of ``lin`` (rigid-body modes 0), for marking response plots;
+    None for a model above ``MARK_MODES_MAX`` coordinates or one the modal analysis refuses."""
+    from ..errors import RegmechError
+    from .modal import modal
+    if lin.n == 0 or lin.n > MARK_MODES_MAX:
+        return None
+    try:
+        return np.asarray(modal(lin).frequencies_hz, float)
+    except RegmechError:
+        return None
+
+
+def output_unit(lin, name: str) -> str | None:
+    """SI unit of the linear output ``name`` (``"J2.w"`` rad/s, ``"spring.tau"`` N m)."""
+    from ..units import signal_unit
+    return signal_unit(lin.compiled.model.components, name)
+
+
+def input_unit(lin, name: str) -> str | None:
+    """SI unit of the amplitude of input ``name``: a force input's torque or force (``"drive.tau"`` N m),
+    a kinematic input's prescribed position or speed (``"motor.w_ref"`` rad/s)."""
+    base = name.split("[")[0]
+    owner, _, var = base.rpartition(".")
+    comp = lin.compiled.model.components.get(owner)
+    if comp is None:
+        return None
+    unit = comp.signal_unit(var)
+    if unit is None and var in comp.param_specs():
+        unit = comp.param_unit(var) or None
+    return unit
 
 
 # ===================================================== multi-harmonic input
@@ -189,6 +240,10 @@ class MultiHarmonicResponse:
     values: np.ndarray
     input_name: str
     period: float | None = None
+    units: dict = field(default_factory=dict)
+    input_unit: str | None = None
+    #: the orders (``base_hz`` given) or None (frequencies)
+    orders: np.ndarray | None = None
 
     def time_series(self, t) -> np.ndarray:
         t = np.atleast_1d(np.asarray(t, float))
@@ -212,9 +267,11 @@ class MultiHarmonicResponse:
         return Table(data, [f"h{i + 1}" for i in range(len(self.freqs_hz))], cols,
                      title=f"multi-harmonic response to {self.input_name}", index_name="harmonic")
 
-    def plot(self, path=None):
+    def plot(self, path=None, units=None):
+        """Amplitude of each harmonic's contribution (bars) and the superposed steady state over one
+        period, labelled with the outputs' units. Returns the figure."""
         from .plots import plot_multi_harmonic
-        return plot_multi_harmonic(self, path=path)
+        return plot_multi_harmonic(self, path=path, units=units)
 
 
 def multi_harmonic_response(lin, outputs, harmonics, input=None, base_hz: float | None = None) -> MultiHarmonicResponse:
@@ -232,7 +289,9 @@ def multi_harmonic_response(lin, outputs, harmonics, input=None, base_hz: float 
     exc = _Excitation(lin, {name: 1.0})
     Y = _response(lin, outputs, 2 * np.pi * freqs, exc) * amps[:, None]
     period = _common_period(spec[:, 0], base_hz) if base_hz else None
-    return MultiHarmonicResponse(freqs, amps, outputs, Y, name, period)
+    return MultiHarmonicResponse(freqs, amps, outputs, Y, name, period,
+                                 units={n: output_unit(lin, n) for n in outputs}, input_unit=input_unit(lin, name),
+                                 orders=spec[:, 0] if base_hz is not None else None)
 
 
 @dataclass
@@ -249,10 +308,45 @@ class OrderSweep:
     outputs: list
     amplitude: np.ndarray
     peak: np.ndarray
+    units: dict = field(default_factory=dict)
+    input_name: str = ""
+    input_unit: str | None = None
+    #: undamped natural frequencies [Hz] (rigid 0), as ``FrequencyResponse.natural_hz``
+    natural_hz: np.ndarray | None = None
+    model_name: str = ""
 
-    def plot(self, path=None):
+    @property
+    def speeds_rpm(self) -> np.ndarray:
+        return self.speeds_hz * 60.0
+
+    def resonance_speeds(self) -> list:
+        """(order, mode number, natural frequency [Hz], speed [rpm]) where an order meets a natural
+        frequency inside the speed range: ``speed = 60 f / order``."""
+        out = []
+        if self.natural_hz is None:
+            return out
+        lo, hi = float(self.speeds_rpm.min()), float(self.speeds_rpm.max())
+        for order in self.orders:
+            if order <= 0:
+                continue
+            for i, f in enumerate(self.natural_hz):
+                rpm = 60.0 * f / order
+                if f > 0 and lo <= rpm <= hi:
+                    out.append((float(order), i + 1, float(f), float(rpm)))
+        return out
+
+    def campbell(self, modes=None):
+        """The Campbell diagram of this sweep's orders and speed range (``analysis.campbell``); ``modes``
+        defaults to the natural frequencies found with the sweep."""
+        from .campbell import campbell
+        return campbell(self.natural_hz if modes is None else modes, self.orders,
+                        (float(self.speeds_rpm.min()), float(self.speeds_rpm.max())), model_name=self.model_name)
+
+    def plot(self, path=None, units=None):
+        """Amplitude of each order and of their sum against speed [rpm], one axis per output labelled with
+        its unit, the speeds where an order meets a natural frequency marked. Returns the figure."""
         from .plots import plot_order_sweep
-        return plot_order_sweep(self, path=path)
+        return plot_order_sweep(self, path=path, units=units)
 
 
 def order_sweep(lin, outputs, orders, speeds_hz, input=None) -> OrderSweep:
@@ -269,7 +363,10 @@ def order_sweep(lin, outputs, orders, speeds_hz, input=None) -> OrderSweep:
         amp[i] = np.abs(r.values)
         ts = r.time_series(r._grid())
         peak[i] = np.abs(ts).max(axis=0)
-    return OrderSweep(speeds, spec[:, 0], outputs, amp, peak)
+    name = _single_input(lin, input)
+    return OrderSweep(speeds, spec[:, 0], outputs, amp, peak, units={n: output_unit(lin, n) for n in outputs},
+                      input_name=name, input_unit=input_unit(lin, name), natural_hz=natural_frequencies(lin),
+                      model_name=lin.compiled.model.name)
 
 
 def _single_input(lin, input):

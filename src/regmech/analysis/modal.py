@@ -196,6 +196,12 @@ class ModalResult:
         from .sensitivity import sensitivities
         return sensitivities(self)
 
+    def campbell(self, orders, speed_rpm=(500.0, 6000.0)):
+        """Campbell diagram of these modes against engine ``orders`` over ``speed_rpm`` [rpm]
+        (``analysis.campbell``): ``.crossings``, ``.table()``, ``.plot(path)``."""
+        from .campbell import campbell
+        return campbell(self, orders, speed_rpm, model_name=self.lin.compiled.model.name)
+
     @property
     def all_rigid(self) -> bool:
         """Every mode is a rigid-body mode (0 Hz): nothing elastic joins the masses at this operating point."""

@@ -434,7 +434,7 @@ def plot_calibration(records, path, solvers=SOLVERS) -> None:
     ax.set_ylabel("achieved error (contract measure, against the reference)")
     ax.set_title("Calibration: every returned run; points above the line would be broken promises")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right", ncol=2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)   # beside: not over runs
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
 

@@ -139,7 +139,7 @@ def plot_scene(records, scene, reference, path: Path) -> bool:
     ax.set_ylabel("max error relative to signal range")
     ax.set_title(f"{scene.key}: {scene.title}", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, ncol=2, loc="best")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)   # beside: not over curves
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return True
