@@ -224,9 +224,34 @@ class Trajectory:
                     idx[f"{dev.name}.{fname}.{wn}"] = lambda kk=kk: self._v(kk)
             for name, j in maps["states"].get(dev.name, ()):
                 idx[name] = lambda j=j: self.Y[:, c.iz[j]]
+            if dev.derived_units:
+                self._derived_recipes(dev, idx, where, taus, maps)
             for j in maps["modes"].get(dev.name, ()):
                 idx[f"{dev.name}.mode"] = lambda j=j: self.modes[:, j].astype(float)
         return idx
+
+    def _derived_recipes(self, dev, idx, where, taus, maps) -> None:
+        """Recipes of the device's ``derived_units`` (``Device.derived``): all computed together on the
+        first request, from the rows, forces and states of this one instance."""
+        from ..errors import ModelError
+        cache: dict = {}
+
+        def compute():
+            if "out" not in cache:
+                e = [self._row_e(w, 0) for w in where]
+                de = [self._row_e(w, 1) for w in where]
+                tau = [np.asarray(tf(), float) for tf in taus]
+                z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] for name, j in maps["states"].get(dev.name, ())}
+                out = dev.derived(self.t, e, de, tau, z)
+                missing = set(dev.derived_units) - set(out)
+                if missing:
+                    raise ModelError(f"{type(dev).__name__} '{dev.name}': derived() returned no {sorted(missing)}, "
+                                     f"which derived_units declares; return every declared signal")
+                cache["out"] = {k: np.broadcast_to(np.asarray(v, float), self.t.shape) for k, v in out.items()}
+            return cache["out"]
+
+        for key in dev.derived_units:
+            idx[f"{dev.name}.{key}"] = lambda key=key: compute()[key]
 
     def _recipes_of(self, comp_name):
         hit = self._recipes.get(comp_name)
