@@ -510,10 +510,11 @@ class Device(Component):
     #: power ``p_el`` [W]); ``derived`` computes them
     derived_units: ClassVar[dict[str, str]] = {}
 
-    def derived(self, t, e, de, tau, z) -> dict:
+    def derived(self, t, left, e, de, tau, z) -> dict:
         """The signals of ``derived_units`` over the output instants, as numpy arrays.
 
-        ``t`` (T,) the times; ``e``, ``de``, ``tau`` lists (one (T,) array per row) of the device
+        ``t`` (T,) the times, ``left`` (T,) bool: the row is the left limit at a time event (read a
+        signal there with ``sig.value(t, left)``); ``e``, ``de``, ``tau`` lists (one (T,) array per row) of the device
         coordinates, their rates and the row forces; ``z`` the internal states, name -> (T,) array.
         Computed per instance after the run (numpy, tables and signals allowed): quantities that feed
         nothing back into the motion, such as the electrical power of a motor from its efficiency map.

@@ -242,7 +242,7 @@ class Trajectory:
                 de = [self._row_e(w, 1) for w in where]
                 tau = [np.asarray(tf(), float) for tf in taus]
                 z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] for name, j in maps["states"].get(dev.name, ())}
-                out = dev.derived(self.t, e, de, tau, z)
+                out = dev.derived(self.t, self.left, e, de, tau, z)
                 missing = set(dev.derived_units) - set(out)
                 if missing:
                     raise ModelError(f"{type(dev).__name__} '{dev.name}': derived() returned no {sorted(missing)}, "

@@ -30,9 +30,9 @@ from ..errors import ParameterError
 from ..ports import ROTATIONAL
 
 
-def _signal_series(sig, t) -> np.ndarray:
-    """Values of a bound signal at the output instants (right limits, as the kernels read them)."""
-    return np.array([sig.value(float(tk)) for tk in t], float)
+def signal_series(sig, t, left) -> np.ndarray:
+    """Values of a bound signal at the output instants (left limits on the rows marked ``left``)."""
+    return np.array([sig.value(float(tk), bool(lf)) for tk, lf in zip(t, left)], float)
 
 
 class DCMotor(Device):
@@ -80,8 +80,8 @@ class DCMotor(Device):
     def derivatives(self, e, de):
         return [(self.u - self.R * self.i - self.k * de[0]) / self.L]
 
-    def derived(self, t, e, de, tau, z):
-        i, w, u = z["i"], de[0], _signal_series(self.u, t)
+    def derived(self, t, left, e, de, tau, z):
+        i, w, u = z["i"], de[0], signal_series(self.u, t, left)
         return {"tau": self.k * i, "u": u, "p_el": u * i, "p_loss": self.R * i * i, "p_mech": self.k * i * w,
                 "magnetic": 0.5 * self.L * i * i}
 
@@ -131,8 +131,8 @@ class SeriesDCMotors(Device):
     def derivatives(self, e, de):
         return [(self.u - self.R * self.i - self.k_1 * de[0] - self.k_2 * de[1]) / self.L]
 
-    def derived(self, t, e, de, tau, z):
-        i, u = z["i"], _signal_series(self.u, t)
+    def derived(self, t, left, e, de, tau, z):
+        i, u = z["i"], signal_series(self.u, t, left)
         return {"tau_1": self.k_1 * i, "tau_2": self.k_2 * i, "w_1": de[0], "w_2": de[1], "u": u, "p_el": u * i,
                 "p_loss": self.R * i * i, "p_mech": (self.k_1 * de[0] + self.k_2 * de[1]) * i,
                 "magnetic": 0.5 * self.L * i * i}
@@ -285,7 +285,7 @@ class ElectricMotor(Device):
         gen = RegularGridInterpolator((ws, ts), gen_map)(pts)
         return np.where(generating, gen, motor)
 
-    def derived(self, t, e, de, tau, z):
+    def derived(self, t, left, e, de, tau, z):
         w = -de[0]
         torque = np.asarray(tau[0], float)
         p_mech = torque * w
