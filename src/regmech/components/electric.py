@@ -186,6 +186,20 @@ def envelope(w, tau_max: float, p_max: float):
     return tau_max * w_base / np.maximum(w_base, np.abs(w))
 
 
+def bilinear(xs, ys, table, x, y) -> np.ndarray:
+    """Bilinear interpolation of ``table[i, j]`` given at ``(xs[i], ys[j])`` (increasing grids), held at
+    the edges beyond them. Written out (not scipy's interpolator, whose code path, and so the last bit of
+    the answer, depends on the arrays' flags, which a pickle round trip changes)."""
+    x = np.clip(np.asarray(x, float), xs[0], xs[-1])
+    y = np.clip(np.asarray(y, float), ys[0], ys[-1])
+    i = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(xs) - 2)
+    j = np.clip(np.searchsorted(ys, y, side="right") - 1, 0, len(ys) - 2)
+    a = (x - xs[i]) / (xs[i + 1] - xs[i])
+    b = (y - ys[j]) / (ys[j + 1] - ys[j])
+    return ((1 - a) * (1 - b) * table[i, j] + a * (1 - b) * table[i + 1, j]
+            + (1 - a) * b * table[i, j + 1] + a * b * table[i + 1, j + 1])
+
+
 class ElectricMotor(Device):
     """Map-based traction machine (motor and generator), torque by command::
 
@@ -276,13 +290,9 @@ class ElectricMotor(Device):
         w, tau = np.abs(np.asarray(w, float)), np.abs(np.asarray(tau, float))
         if self.eta is None:
             return np.ones(np.broadcast(w, tau).shape)
-        from scipy.interpolate import RegularGridInterpolator
-
         ws, ts = self.eta_speeds, self.eta_torques
-        pts = np.stack([np.clip(w, ws[0], ws[-1]), np.clip(tau, ts[0], ts[-1])], axis=-1)
-        motor = RegularGridInterpolator((ws, ts), self.eta)(pts)
-        gen_map = self.eta if self.eta_gen is None else self.eta_gen
-        gen = RegularGridInterpolator((ws, ts), gen_map)(pts)
+        motor = bilinear(ws, ts, self.eta, w, tau)
+        gen = motor if self.eta_gen is None else bilinear(ws, ts, self.eta_gen, w, tau)
         return np.where(generating, gen, motor)
 
     def derived(self, t, left, e, de, tau, z):
