@@ -35,8 +35,9 @@ GROUPS = {
     "friction": ["clutch", "brake", "one_way_clutch", "bearing_friction", "friction_contact", "spring_damper"],
     "vehicle": ["wheel", "magic_formula_wheel", "road_load", "engine", "shaft_elastic", "clutch"],
     "rough": ["spring_damper", "shaft_rigid", "clutch", "differential"],
+    "electric": ["dc_motor", "electric_motor", "pi_control", "spring_damper", "shaft_elastic", "ideal_gear", "clutch"],
 }
-EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4}
+EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8}
 
 
 def _check(rng, group, references="smooth", require=()):
@@ -82,6 +83,12 @@ def test_random_friction_drivetrains(rng):
 @given(rng=st.randoms(use_true_random=False))
 def test_random_vehicles(rng):
     _check(rng, "vehicle")
+
+
+@_settings("electric")
+@given(rng=st.randoms(use_true_random=False))
+def test_random_electric_drives_and_control_loops(rng):
+    _check(rng, "electric", require=[rng.choice(["dc_motor", "electric_motor", "pi_control"])])
 
 
 @_settings("rough")

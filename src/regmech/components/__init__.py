@@ -2,6 +2,7 @@
 
 from .backlash import Backlash, ElastoBacklash
 from .electric import DCMotor, ElectricMotor, SeriesDCMotors
+from .control import PI, Controller, Driver
 from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
 from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, LossyGear, OneWayClutch
 from .gears import IdealGear
@@ -20,5 +21,5 @@ __all__ = [
     "Clutch", "OneWayClutch", "LossyGear", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
     "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
-    "DCMotor", "SeriesDCMotors", "ElectricMotor",
+    "DCMotor", "SeriesDCMotors", "ElectricMotor", "Controller", "PI", "Driver",
 ]
