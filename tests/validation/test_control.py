@@ -238,3 +238,45 @@ def test_electric_car_matches_an_independent_model_and_regenerates():
     kinetic = sum(res[f"{n}.kinetic"] for n in ("rotor", "reduction_out", "wheels", "body"))
     lost = cumulative_trapezoid(res["road_load.power"], res.t, initial=0.0)
     assert np.max(np.abs(work - kinetic - lost)) < 1e-4 * np.abs(work).max()
+
+
+def test_malformed_user_controllers_are_named_model_errors():
+    """Regression: a non-expression output reached the kernel as an unknown name (a NameError from the
+    lambdified code); a controller without sensors and actuators was accepted and did nothing."""
+    class Text(Controller):
+        sensors = {"s": "rotational"}
+        actuators = {"a": "rotational"}
+
+        def outputs(self, m):
+            return {"a": "torque"}
+
+    class Nothing(Controller):
+        def outputs(self, m):
+            return {}
+    m = rm.Model("text")
+    ctl = m.add(Text("ctl"))
+    plant = m.add(Inertia("plant", J=1.0))
+    m.connect(ctl.a, plant.flange_a)
+    m.connect(ctl.s, plant.flange_b)
+    with pytest.raises(ModelError, match="Text: outputs\\(\\) gave 'torque' for 'a'"):
+        m.simulate(t_end=0.1)
+    with pytest.raises(ModelError, match="Nothing 'n': a controller needs at least one sensor or actuator"):
+        Nothing("n")
+
+
+def test_a_failing_derived_signal_is_a_model_error_naming_the_device():
+    class Broken(rm.components.Torque):
+        derived_units = {"x": "W", "y": "W"}
+
+        def derived(self, t, left, e, de, tau, z):
+            if self.tau.value(0.0) > 1.5:
+                raise ZeroDivisionError("boom")
+            return {"x": np.full(len(t), np.nan), "y": 0.0}
+    for tau, match in ((1.0, "derived signal 'x' is not finite"), (2.0, "derived\\(\\) failed \\(ZeroDivisionError")):
+        m = rm.Model("broken")
+        src = m.add(Broken("src", tau=tau))
+        plant = m.add(Inertia("plant", J=1.0))
+        m.connect(src.flange, plant.flange_a)
+        res = m.simulate(t_end=0.1)
+        with pytest.raises(ModelError, match=f"Broken 'src': {match}"):
+            res["src.x"]

@@ -233,7 +233,7 @@ class Trajectory:
     def _derived_recipes(self, dev, idx, where, taus, maps) -> None:
         """Recipes of the device's ``derived_units`` (``Device.derived``): all computed together on the
         first request, from the rows, forces and states of this one instance."""
-        from ..errors import ModelError
+        from ..errors import ModelError, RegmechError
         cache: dict = {}
 
         def compute():
@@ -242,12 +242,31 @@ class Trajectory:
                 de = [self._row_e(w, 1) for w in where]
                 tau = [np.asarray(tf(), float) for tf in taus]
                 z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] for name, j in maps["states"].get(dev.name, ())}
-                out = dev.derived(self.t, self.left, e, de, tau, z)
-                missing = set(dev.derived_units) - set(out)
+                where = f"{type(dev).__name__} '{dev.name}'"
+                try:
+                    out = dev.derived(self.t, self.left, e, de, tau, z)
+                except RegmechError:
+                    raise
+                except Exception as exc:      # a user's derived(): said as a regmech error naming the device
+                    raise ModelError(f"{where}: derived() failed ({type(exc).__name__}: {exc}); it computes the "
+                                     f"signals {sorted(dev.derived_units)} from the run with numpy") from exc
+                missing = set(dev.derived_units) - set(out if isinstance(out, dict) else {})
                 if missing:
-                    raise ModelError(f"{type(dev).__name__} '{dev.name}': derived() returned no {sorted(missing)}, "
-                                     f"which derived_units declares; return every declared signal")
-                cache["out"] = {k: np.broadcast_to(np.asarray(v, float), self.t.shape) for k, v in out.items()}
+                    raise ModelError(f"{where}: derived() returned no {sorted(missing)}, which derived_units "
+                                     f"declares; return a dict with every declared signal")
+                done = {}
+                for k in dev.derived_units:
+                    try:
+                        val = np.broadcast_to(np.asarray(out[k], float), self.t.shape)
+                    except (TypeError, ValueError) as exc:
+                        raise ModelError(f"{where}: derived signal '{k}' is not a number per output instant "
+                                         f"({exc}); return an array of shape {self.t.shape}") from exc
+                    bad = ~np.isfinite(val)
+                    if bad.any():
+                        raise ModelError(f"{where}: derived signal '{k}' is not finite at t={self.t[bad][0]:.6g}; "
+                                         f"check the device's parameters and derived()")
+                    done[k] = val
+                cache["out"] = done
             return cache["out"]
 
         for key in dev.derived_units:

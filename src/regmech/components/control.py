@@ -83,6 +83,11 @@ def _domain(cls, what, name, dom):
     return dom
 
 
+def _class_name(obj) -> str:
+    """The controller class's name, also while its laws are written symbolically (``self`` a proxy)."""
+    return getattr(obj, "_cls", type(obj)).__name__
+
+
 class Controller(Device):
     """Base of closed-loop controllers (see the module docstring for the design).
 
@@ -139,15 +144,35 @@ class Controller(Device):
         return Measurements({s: e[i] for i, s in enumerate(names)}, {s: de[i] for i, s in enumerate(names)},
                             {a: -de[ns + j] for j, a in enumerate(self.actuators)})
 
+    def __init__(self, name: str, **params):
+        if not self.sensors and not self.actuators:
+            raise ModelError(f"{type(self).__name__} '{name}': a controller needs at least one sensor or actuator; "
+                             f"declare sensors = {{'name': 'rotational'}} and/or actuators = {{...}} on the class")
+        super().__init__(name, **params)
+
+    def _checked(self, what, values):
+        """Expressions of ``outputs``/``rates`` as sympy (a str or another object would reach the kernel
+        as an unknown name and fail there, far from the cause)."""
+        out = []
+        for key, val in values:
+            if isinstance(val, bool) or not isinstance(val, (int, float, np.floating, np.integer, sympy.Basic)):
+                raise ModelError(f"{_class_name(self)}: {what} gave {val!r} for '{key}'; it must be a number or "
+                                 f"an expression of the measurements, states and parameters (arithmetic and "
+                                 f"sympy functions)")
+            out.append(val)
+        return out
+
     def laws(self, e, de):
         out = self.outputs(self._measure(e, de))
         missing = set(self.actuators) - set(out)
         if missing:
-            raise ModelError(f"{type(self).__name__}: outputs() gave no value for actuator(s) {sorted(missing)}")
-        return [0] * len(self.sensors) + [out[a] for a in self.actuators]
+            raise ModelError(f"{_class_name(self)}: outputs() gave no value for actuator(s) {sorted(missing)}; "
+                             f"return a dict with one entry per actuator")
+        return [0] * len(self.sensors) + self._checked("outputs()", [(a, out[a]) for a in self.actuators])
 
     def derivatives(self, e, de):
-        return list(self.rates(self._measure(e, de)))
+        rates = list(self.rates(self._measure(e, de)))
+        return self._checked("rates()", zip(list(self.states) + ["?"] * len(rates), rates))
 
     def derived(self, t, left, e, de, tau, z):
         ns = len(self.sensors)
