@@ -242,28 +242,28 @@ class Trajectory:
                 de = [self._row_e(w, 1) for w in where]
                 tau = [np.asarray(tf(), float) for tf in taus]
                 z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] for name, j in maps["states"].get(dev.name, ())}
-                where = f"{type(dev).__name__} '{dev.name}'"
+                who = f"{type(dev).__name__} '{dev.name}'"
                 try:
                     out = dev.derived(self.t, self.left, e, de, tau, z)
                 except RegmechError:
                     raise
                 except Exception as exc:      # a user's derived(): said as a regmech error naming the device
-                    raise ModelError(f"{where}: derived() failed ({type(exc).__name__}: {exc}); it computes the "
+                    raise ModelError(f"{who}: derived() failed ({type(exc).__name__}: {exc}); it computes the "
                                      f"signals {sorted(dev.derived_units)} from the run with numpy") from exc
                 missing = set(dev.derived_units) - set(out if isinstance(out, dict) else {})
                 if missing:
-                    raise ModelError(f"{where}: derived() returned no {sorted(missing)}, which derived_units "
+                    raise ModelError(f"{who}: derived() returned no {sorted(missing)}, which derived_units "
                                      f"declares; return a dict with every declared signal")
                 done = {}
                 for k in dev.derived_units:
                     try:
                         val = np.broadcast_to(np.asarray(out[k], float), self.t.shape)
                     except (TypeError, ValueError) as exc:
-                        raise ModelError(f"{where}: derived signal '{k}' is not a number per output instant "
+                        raise ModelError(f"{who}: derived signal '{k}' is not a number per output instant "
                                          f"({exc}); return an array of shape {self.t.shape}") from exc
                     bad = ~np.isfinite(val)
                     if bad.any():
-                        raise ModelError(f"{where}: derived signal '{k}' is not finite at t={self.t[bad][0]:.6g}; "
+                        raise ModelError(f"{who}: derived signal '{k}' is not finite at t={self.t[bad][0]:.6g}; "
                                          f"check the device's parameters and derived()")
                     done[k] = val
                 cache["out"] = done
