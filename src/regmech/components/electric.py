@@ -28,6 +28,7 @@ import sympy
 from ..component import Device, Param
 from ..errors import ParameterError
 from ..ports import ROTATIONAL
+from .heat import HEAT_UNITS, heat_signals
 
 
 def signal_series(sig, t, left) -> np.ndarray:
@@ -68,7 +69,7 @@ class DCMotor(Device):
     L = Param(check="positive", unit="H", doc="armature inductance")
     k = Param(check="positive", unit="N m/A", doc="torque constant = back-EMF constant [V s/rad]")
     i0 = Param(0.0, unit="A", doc="start current")
-    derived_units = {"tau": "N m", "u": "V", "p_el": "W", "p_loss": "W", "p_mech": "W", "magnetic": "J"}
+    derived_units = {"tau": "N m", "u": "V", "p_el": "W", "p_loss": "W", "p_mech": "W", "magnetic": "J", **HEAT_UNITS}
 
     def rows(self):
         # e = phi_flange - phi_support: de is the rotor speed, flange.tau = -k i, so the rotor receives +k i
@@ -83,7 +84,7 @@ class DCMotor(Device):
     def derived(self, t, left, e, de, tau, z):
         i, w, u = z["i"], de[0], signal_series(self.u, t, left)
         return {"tau": self.k * i, "u": u, "p_el": u * i, "p_loss": self.R * i * i, "p_mech": self.k * i * w,
-                "magnetic": 0.5 * self.L * i * i}
+                "magnetic": 0.5 * self.L * i * i, **heat_signals(t, self.R * i * i)}
 
 
 class SeriesDCMotors(Device):
@@ -120,7 +121,7 @@ class SeriesDCMotors(Device):
     k_2 = Param(check="positive", unit="N m/A", doc="motor constant of motor 2 [V s/rad]")
     i0 = Param(0.0, unit="A", doc="start current")
     derived_units = {"tau_1": "N m", "tau_2": "N m", "w_1": "rad/s", "w_2": "rad/s", "u": "V", "p_el": "W",
-                     "p_loss": "W", "p_mech": "W", "magnetic": "J"}
+                     "p_loss": "W", "p_mech": "W", "magnetic": "J", **HEAT_UNITS}
 
     def rows(self):
         return [{"flange_1": 1.0, "support": -1.0}, {"flange_2": 1.0, "support": -1.0}]
@@ -135,7 +136,7 @@ class SeriesDCMotors(Device):
         i, u = z["i"], signal_series(self.u, t, left)
         return {"tau_1": self.k_1 * i, "tau_2": self.k_2 * i, "w_1": de[0], "w_2": de[1], "u": u, "p_el": u * i,
                 "p_loss": self.R * i * i, "p_mech": (self.k_1 * de[0] + self.k_2 * de[1]) * i,
-                "magnetic": 0.5 * self.L * i * i}
+                "magnetic": 0.5 * self.L * i * i, **heat_signals(t, self.R * i * i)}
 
 
 def _grid(comp, name, value) -> np.ndarray:
@@ -241,7 +242,7 @@ class ElectricMotor(Device):
     eta_torques = Param(None, check="any", optional=True, unit="N m", doc="torque grid of the efficiency map")
     eta = Param(None, check="any", optional=True, unit="1", doc="motor efficiency, shape (speeds, torques)")
     eta_gen = Param(None, check="any", optional=True, unit="1", doc="generator efficiency (default: eta)")
-    derived_units = {"tau": "N m", "p_mech": "W", "p_el": "W", "p_loss": "W", "efficiency": "1"}
+    derived_units = {"tau": "N m", "p_mech": "W", "p_el": "W", "p_loss": "W", "efficiency": "1", **HEAT_UNITS}
 
     @property
     def w_base(self) -> float:
@@ -302,7 +303,8 @@ class ElectricMotor(Device):
         generating = p_mech < 0
         eta = self.efficiency(w, torque, generating)
         p_el = np.where(generating, p_mech * eta, p_mech / eta)
-        return {"tau": torque, "p_mech": p_mech, "p_el": p_el, "p_loss": p_el - p_mech, "efficiency": eta}
+        return {"tau": torque, "p_mech": p_mech, "p_el": p_el, "p_loss": p_el - p_mech, "efficiency": eta,
+                **heat_signals(t, p_el - p_mech)}
 
 
 __all__ = ["DCMotor", "SeriesDCMotors", "ElectricMotor", "envelope", "SpeedAbove"]
