@@ -280,3 +280,44 @@ def test_a_failing_derived_signal_is_a_model_error_naming_the_device():
         res = m.simulate(t_end=0.1)
         with pytest.raises(ModelError, match=f"Broken 'src': {match}"):
             res["src.x"]
+
+
+class TorqueLoop(Controller):
+    """A user controller that senses the torque of a spring (c times the twist read by a sensor spanning
+    its flanges) and drives the motor so that the spring carries ``T_set`` (integral control)."""
+    sensors = {"twist": "rotational"}
+    actuators = {"motor": "rotational"}
+    states = {"x": "x0"}
+    T_set = rm.Param(check="real", unit="N m")
+    c = rm.Param(check="positive", unit="N m/rad")
+    k_i = rm.Param(check="positive", unit="1/s")
+    x0 = rm.Param(0.0, unit="N m")
+
+    def outputs(self, m):
+        # proportional and integral on the torque error, and damping of the twist rate (integral control of
+        # an undamped spring alone is unstable: J s^3 + 3 c s + k_i c has no s^2 term)
+        return {"motor": self.x + 2.0 * (self.T_set - self.c * m.phi["twist"]) - 5.0 * m.w["twist"]}
+
+    def rates(self, m):
+        return [self.k_i * (self.T_set - self.c * m.phi["twist"])]
+
+
+def test_torque_of_a_compliant_device_is_sensed_through_its_twist():
+    from regmech.components import Spring
+    m = rm.Model("torque_loop")
+    ctl = m.add(TorqueLoop("ctl", T_set=6.0, c=400.0, k_i=20.0))
+    motor = m.add(Inertia("motor", J=0.1, phi0=0.0, w0=0.0))
+    spring = m.add(Spring("spring", c=400.0))
+    load = m.add(Inertia("load", J=1.0, phi0=0.0, w0=0.0))
+    drag = m.add(Damper("drag", d=0.5))
+    ground = m.add(Fixed("ground"))
+    m.connect(ctl.motor, motor.flange_a)
+    m.connect(motor.flange_b, spring.flange_a)
+    m.connect(spring.flange_b, load.flange_a)
+    m.connect(ctl.twist_ref, load.flange_a)      # twist = phi_motor - phi_load = -spring.phi_rel
+    m.connect(ctl.twist, motor.flange_b)
+    m.connect(load.flange_b, drag.flange_b)
+    m.connect(drag.flange_a, ground.flange)
+    res = m.simulate(t_end=20.0, dt_out=1e-2, **IDA)
+    assert -res["spring.tau"][-1] == pytest.approx(6.0, rel=1e-4)       # the spring carries T_set
+    assert res["load.w"][-1] == pytest.approx(6.0 / 0.5, rel=1e-3)        # against the drag d w
