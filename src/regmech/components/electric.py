@@ -56,7 +56,8 @@ class DCMotor(Device):
     Exports ``w`` (rotor speed relative to the stator), the state ``i`` [A],
     and derived signals ``tau`` = k i [N m], ``u`` [V], ``p_el`` = u i,
     ``p_loss`` = R i^2, ``p_mech`` = k i w [W], ``magnetic`` = L i^2 / 2 [J];
-    ``p_el = p_mech + p_loss + d(magnetic)/dt`` holds exactly.
+    ``p_el = p_mech + p_loss + d(magnetic)/dt`` holds exactly; ``heat_flow`` (= ``p_loss``) and the
+    accumulated ``heat`` [J] as every loss element (``components.heat``).
     """
 
     kind = "compliant"
@@ -106,7 +107,7 @@ class SeriesDCMotors(Device):
 
     Exports the state ``i`` [A], derived ``tau_1``, ``tau_2`` [N m], ``w_1``,
     ``w_2`` [rad/s], ``u`` [V], ``p_el`` = u i, ``p_loss`` = R i^2,
-    ``p_mech`` = (k_1 w_1 + k_2 w_2) i [W], ``magnetic`` = L i^2 / 2 [J].
+    ``p_mech`` = (k_1 w_1 + k_2 w_2) i [W], ``magnetic`` = L i^2 / 2 [J], ``heat_flow``, ``heat``.
     """
 
     kind = "compliant"
@@ -227,7 +228,13 @@ class ElectricMotor(Device):
     motion and ``p_el`` is a derived signal (``p_el``, ``p_loss = p_el - p_mech``
     [W], ``tau`` [N m], ``w_base`` rad/s as a parameter). The envelope's corner
     at ``w_base`` is a kink (continuous torque, a jump in its slope), which
-    IDA steps over without an event.
+    IDA steps over without an event. ``heat_flow`` (= ``p_loss``) and ``heat``
+    [J] as every loss element.
+
+    Driven by a controller instead of a time signal: a ``Controller`` whose
+    actuator law is ``command * envelope(w, tau_max, p_max)`` with the
+    command from its loop (``control.Driver`` does this for a speed profile);
+    the efficiency map then applies to the actuator's torque and speed.
     """
 
     kind = "compliant"
