@@ -234,7 +234,8 @@ class ElectricMotor(Device):
     Driven by a controller instead of a time signal: a ``Controller`` whose
     actuator law is ``command * envelope(w, tau_max, p_max)`` with the
     command from its loop (``control.Driver`` does this for a speed profile);
-    the efficiency map then applies to the actuator's torque and speed.
+    an ``ElectricMotor``'s ``efficiency(w, tau, generating)`` turns that
+    actuator's torque and speed into the electrical side after the run.
     """
 
     kind = "compliant"
