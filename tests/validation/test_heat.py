@@ -69,3 +69,33 @@ def test_accumulated_integrates_jumps_at_duplicated_event_instants_exactly():
     t = np.array([0.0, 1.0, 1.0, 2.0])
     p = np.array([1.0, 1.0, 3.0, 3.0])                  # a jump at t = 1 (left and right limits)
     assert accumulated(t, p) == pytest.approx([0.0, 1.0, 1.0, 4.0])
+
+
+def _clutch_run():
+    J1, J2 = 1.0, 3.0
+    m = rm.Model("clutch_heat")
+    a = m.add(Inertia("a", J=J1, phi0=0.0, w0=50.0))
+    b = m.add(Inertia("b", J=J2, phi0=0.0, w0=10.0))
+    c = m.add(Clutch("clutch", mu=0.3, cgeo=0.1, fn_max=2000.0, peak=1.1))
+    m.connect(a.flange_b, c.flange_a)
+    m.connect(c.flange_b, b.flange_a)
+    return m.simulate(t_end=3.0, dt_out=1e-3, **IDA)
+
+
+def test_lumped_thermal_mass_matches_scipy_and_the_adiabatic_closed_form():
+    from scipy.integrate import solve_ivp
+    from regmech.components.heat import temperature
+    res = _clutch_run()
+    C, G, T0 = 400.0, 2.0, 25.0
+    # adiabatic: the temperature rise is the heat over the capacity
+    assert np.allclose(temperature(res, "clutch", C, 0.0, T0), T0 + res["clutch.heat"] / C, rtol=0, atol=1e-12)
+    # with convection: against scipy on the same (linearly interpolated) heat flow
+    T = temperature(res, "clutch", C, G, T0, T_amb=20.0)
+    t, p = res.t, res["clutch.heat_flow"]
+    tu, first = np.unique(t, return_index=True)            # the lock-up instant is recorded twice
+    ref = solve_ivp(lambda s, y: [(np.interp(s, t, p) - G * (y[0] - 20.0)) / C], (0.0, t[-1]), [T0], t_eval=tu,
+                    method="DOP853", rtol=1e-12, atol=1e-12, max_step=1e-3)
+    assert np.max(np.abs(T[first] - ref.y[0])) < 1e-8
+    assert T.max() > T0 + 1.0 and T[-1] < T.max()                 # heated while slipping, cooling after lock-up
+    with pytest.raises(rm.errors.ParameterError, match="C must be a finite number > 0"):
+        temperature(res, "clutch", 0.0)
