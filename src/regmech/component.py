@@ -369,6 +369,9 @@ class Component:
             return variable_unit(tail, fl.domain) if fl is not None else None
         if var in FIXED_UNITS:
             return FIXED_UNITS[var]
+        derived = getattr(self, "derived_units", None) or {}
+        if var in derived:
+            return derived[var]
         states = getattr(self, "states", None) or {}
         if var in states:
             if var in self.state_units:
@@ -516,6 +519,22 @@ class Device(Component):
     def potential(self, e):
         """Stored energy as a function of the device coordinates (0 if none)."""
         return 0
+
+    # -- derived outputs: signals computed from a result, never seen by the solvers --------------
+    #: extra signals ``<name>.<key>`` the device exports, key -> SI unit (e.g. a motor's electrical
+    #: power ``p_el`` [W]); ``derived`` computes them
+    derived_units: ClassVar[dict[str, str]] = {}
+
+    def derived(self, t, left, e, de, tau, z) -> dict:
+        """The signals of ``derived_units`` over the output instants, as numpy arrays.
+
+        ``t`` (T,) the times, ``left`` (T,) bool: the row is the left limit at a time event (read a
+        signal there with ``sig.value(t, left)``); ``e``, ``de``, ``tau`` lists (one (T,) array per row) of the device
+        coordinates, their rates and the row forces; ``z`` the internal states, name -> (T,) array.
+        Computed per instance after the run (numpy, tables and signals allowed): quantities that feed
+        nothing back into the motion, such as the electrical power of a motor from its efficiency map.
+        """
+        return {}
 
 
 class Subsystem(Component):

@@ -71,6 +71,8 @@ DISPLAY_UNITS: dict[str, dict[str, float]] = {
     "J": {"J": 1.0, "kJ": 1e3, "MJ": 1e6, "Wh": 3600.0},
     "W": {"W": 1.0, "kW": 1e3, "hp": 745.69987158227022},
     "s": {"s": 1.0, "ms": 1e-3},
+    "A": {"A": 1.0, "kA": 1e3, "mA": 1e-3},
+    "V": {"V": 1.0, "kV": 1e3, "mV": 1e-3},
 }
 #: what a signal of each SI unit is, for axis labels ("speed [rpm]")
 QUANTITIES = {"rad": "angle", "rad/s": "speed", "rad/s^2": "angular acceleration", "N m": "torque",

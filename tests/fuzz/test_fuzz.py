@@ -35,12 +35,13 @@ GROUPS = {
     "friction": ["clutch", "brake", "one_way_clutch", "bearing_friction", "friction_contact", "spring_damper"],
     "vehicle": ["wheel", "magic_formula_wheel", "road_load", "engine", "shaft_elastic", "clutch"],
     "rough": ["spring_damper", "shaft_rigid", "clutch", "differential"],
+    "electric": ["dc_motor", "electric_motor", "pi_control", "spring_damper", "shaft_elastic", "ideal_gear", "clutch"],
 }
-EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4}
+EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8}
 
 
-def _check(rng, group, references="smooth", require=()):
-    spec = generate(rng, families=GROUPS[group] + SOURCES, n_steps=rng.randint(1, 4), name=f"fuzz_{group}",
+def _check(rng, group, references="smooth", require=(), sources=SOURCES):
+    spec = generate(rng, families=GROUPS[group] + sources, n_steps=rng.randint(1, 4), name=f"fuzz_{group}",
                     references=references, require=require)
     verdict = evaluate(spec, runs=CI_RUNS, max_calls=MAX_CALLS)
     if verdict.status == "finding":
@@ -82,6 +83,16 @@ def test_random_friction_drivetrains(rng):
 @given(rng=st.randoms(use_true_random=False))
 def test_random_vehicles(rng):
     _check(rng, "vehicle")
+
+
+@_settings("electric")
+@given(rng=st.randoms(use_true_random=False))
+def test_random_electric_drives_and_control_loops(rng):
+    # rotational sources only: the machines and loops are rotational, and a Force on a free Mass drew the
+    # campaign's known range-accuracy shortfall (a speed varying little about a large value; seed 160 of
+    # benchmarks/results/fuzz.md), which has nothing to do with these families
+    _check(rng, "electric", require=[rng.choice(["dc_motor", "electric_motor", "pi_control"])],
+           sources=["torque", "speed", "position"])
 
 
 @_settings("rough")

@@ -92,8 +92,8 @@ def test_names_and_membership_without_the_full_index(chain_run):
     names = res.names
     assert len(names) == len(set(names))
     # per inertia phi, w, a, kinetic; per spring-damper its 4 relative signals, power, potential and
-    # angle, speed and torque at each flange
-    assert sum(n.startswith("J7.") for n in names) == 4 and sum(n.startswith("sd3.") for n in names) == 12
+    # angle, speed and torque at each flange, and its heat flow and accumulated heat
+    assert sum(n.startswith("J7.") for n in names) == 4 and sum(n.startswith("sd3.") for n in names) == 14
     assert names == sorted(names)
     assert all(n in res for n in names[::97])
     with pytest.raises(rm.UnknownSignalError, match="J1.w"):

@@ -22,8 +22,7 @@ PUBLIC = [getattr(comps, n) for n in comps.__all__]
 
 def _library_classes():
     import regmech.library.chains as chains
-    import regmech.library.excavator as exc
-    return [chains.ChainJoint, exc.ArmatureCircuit]
+    return [chains.ChainJoint]          # the excavator's armature is the library's SeriesDCMotors now
 
 
 # ------------------------------------------------------------------------------------------ signatures

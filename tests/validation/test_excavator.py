@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import cumulative_trapezoid, solve_ivp
 
 from regmech.library import SCENES
-from regmech.library.excavator import W_NOMINAL, armature_energies, excavator_swing
+from regmech.library.excavator import W_NOMINAL, excavator_swing
 
 T_END = 3.0
 # the defaults of excavator_swing, restated for the independent reference model
@@ -107,7 +107,9 @@ def test_play_closes_torques_oscillate_and_settle_at_the_target_speed(run):
 def test_energy_balance_from_the_supply_to_the_sinks(run):
     model, res = run
     t = res.t
-    el = armature_energies(res, model["armature"])
+    el = {"p_in": res["armature.p_el"], "p_copper": res["armature.p_loss"], "magnetic": res["armature.magnetic"],
+          "p_mech": res["armature.p_mech"]}
+    assert np.allclose(el["p_mech"], -res["armature.power"], rtol=1e-12, atol=1e-9)   # the source's work
 
     def integral(p):
         return cumulative_trapezoid(p, t, initial=0.0)
@@ -123,3 +125,62 @@ def test_energy_balance_from_the_supply_to_the_sinks(run):
     assert np.max(np.abs(supplied - mechanical)) < 2e-6 * scale
     assert np.max(np.abs(mechanical - kinetic - elastic - dissipated)) < 2e-6 * scale
     assert dissipated[-1] > 0.5 * mechanical[-1]                 # friction at 10 % speed takes most of it
+
+
+def _user_written_scene():
+    """The scene as it was before ``SeriesDCMotors`` existed: the armature a user-defined device in the
+    paper's notation (T_a = L/R, C_k the motor constants)."""
+    import regmech as rm
+    from regmech.components import Backlash, BearingFriction, Damper, Inertia
+    from regmech.ports import ROTATIONAL
+    from regmech.signals import Ramp
+
+    class ArmatureCircuit(rm.Device):
+        kind = "compliant"
+        is_source = True
+        states = {"i": "i0"}
+        flanges = (("motor_1", ROTATIONAL), ("motor_2", ROTATIONAL), ("support", ROTATIONAL, True))
+        rel_names = {ROTATIONAL: (None, None, None, None)}
+        u_a = rm.Param(check="signal", unit="V")
+        R_a = rm.Param(check="positive", unit="Ohm")
+        T_a = rm.Param(check="positive", unit="s")
+        C_1 = rm.Param(check="positive", unit="V s/rad")
+        C_2 = rm.Param(check="positive", unit="V s/rad")
+        i0 = rm.Param(0.0, unit="A")
+
+        def rows(self):
+            return [{"motor_1": 1.0, "support": -1.0}, {"motor_2": 1.0, "support": -1.0}]
+
+        def laws(self, e, de):
+            return [-self.C_1 * self.i, -self.C_2 * self.i]
+
+        def derivatives(self, e, de):
+            return [((self.u_a - self.C_1 * de[0] - self.C_2 * de[1]) / self.R_a - self.i) / self.T_a]
+
+    m = rm.Model("excavator_user_armature")
+    m.add(ArmatureCircuit("armature", u_a=Ramp(height=U_TARGET, duration=0.5), R_a=R_A, T_a=T_A, C_1=C_M, C_2=C_M))
+    turntable = m.add(Inertia("turntable", J=J_2, phi0=0.0, w0=0.0))
+    friction = m.add(BearingFriction("swing_friction", tau_table=[(0.0, M_C2)], peak=PEAK))
+    m.connect(turntable.flange_b, friction.flange)
+    for k in (1, 2):
+        motor = m.add(Inertia(f"motor_{k}", J=J_M, phi0=0.0, w0=0.0))
+        shaft = m.add(Backlash(f"backlash_{k}", c=C_S, b=DPHI))
+        damper = m.add(Damper(f"damper_{k}", d=BETA))
+        m.connect(m["armature"].get_flange(f"motor_{k}"), motor.flange_a)
+        for dev in (shaft, damper):
+            m.connect(turntable.flange_a, dev.flange_a)
+            m.connect(dev.flange_b, motor.flange_b)
+    return m
+
+
+def test_series_dc_motors_reproduce_the_user_written_armature(run):
+    """SeriesDCMotors states the same equations as the scene's former user-written device: the two runs
+    agree to the solver's tolerance (same events, same current and speeds)."""
+    model, res = run
+    old = _user_written_scene().simulate(T_END, dt_out=1e-3)
+    assert [(e.component, e.old_mode, e.new_mode) for e in old.events] == \
+        [(e.component, e.old_mode, e.new_mode) for e in res.events]
+    assert np.max(np.abs(old["armature.i"] - res["armature.i"])) < 0.01          # A, of ~150 A
+    for name in ("motor_1.w", "motor_2.w", "turntable.w"):
+        assert np.max(np.abs(old[name] - res[name])) < 5e-4                      # rad/s, of ~9 rad/s
+    assert np.allclose(res["armature.tau_1"], C_M * res["armature.i"])

@@ -95,12 +95,14 @@ FAMILIES = {
     "wheel": 2, "magic_formula_wheel": 1, "road_load": 1, "engine": 1,
     # sources
     "torque": 4, "force": 3, "speed": 2, "position": 2,
+    # electric machines and closed-loop control (sources too: they feed work in)
+    "dc_motor": 2, "electric_motor": 2, "pi_control": 2,
 }
 #: signal types drawn for sources and normal forces ("callable": a lambda of t)
 SIGNALS = ("Constant", "Step", "Ramp", "Sine", "Table", "Pulse", "callable")
 #: families that need a translational mass to attach to
 TRANSLATIONAL_FAMILIES = {"friction_contact", "force", "road_load"}
-SOURCE_FAMILIES = {"torque", "force", "speed", "position", "engine"}
+SOURCE_FAMILIES = {"torque", "force", "speed", "position", "engine", "dc_motor", "electric_motor", "pi_control"}
 
 
 def _fmt(x: float) -> str:
@@ -572,6 +574,34 @@ class _Gen:
             tab = "[" + ", ".join(f"({_fmt(w)}, {_fmt(self.tau_scale * self.u(0.2, 1.0))})" for w in ws) + "]"
             var = self.add("engine", "Engine", torque_map=tab, throttle=self.signal(0.0, 1.0))
             self.connect(f"{var}.flange", self.flange(a))
+            return
+        if family == "dc_motor":
+            # stall torque k u / R of the order of the model's torques, electrical time constant 1..100 ms
+            a = self.anchor("rotational")
+            r, k = self.dec(-1.5, 0.5), self.dec(-1.0, 0.5)
+            amp = self.tau_scale * r / k * self.dec(-0.5, 0.5)
+            var = self.add("dcm", "DCMotor", u=self.signal(-amp, amp), R=_fmt(r), L=_fmt(r * self.dec(-3, -1)),
+                           k=_fmt(k))
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        if family == "electric_motor":
+            a = self.anchor("rotational")
+            tau_max = self.tau_scale * self.dec(-0.5, 0.5)
+            var = self.add("emot", "ElectricMotor", command=self.signal(-1.0, 1.0), tau_max=_fmt(tau_max),
+                           p_max=_fmt(tau_max * self.dec(0.0, 2.0)))       # base speed 1..100 rad/s
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        if family == "pi_control":
+            # senses one inertia, drives it (or, sometimes, another one); closed-loop bandwidth ~1..30 rad/s
+            a = self.anchor("rotational")
+            others = [b for b in self.bodies if b.domain == "rotational" and b is not a]
+            b = self.pick(others) if others and self.chance(0.2) else a
+            u_max = self.tau_scale * self.dec(-0.3, 0.3)
+            amp = self.dec(-1, 1.3)
+            var = self.add("pi", "PI", w_ref=self.signal(-amp, amp), k=_fmt(a.mass * self.dec(0.0, 1.5)),
+                           T_i=_fmt(self.dec(-1.0, 0.5)), u_max=_fmt(u_max), u_min=_fmt(-u_max))
+            self.connect(f"{var}.sensor", self.flange(a))
+            self.connect(f"{var}.flange", self.flange(b))
             return
         # prescribed motion: one per rigid group, on a group without start values (assigned later)
         domain = "rotational" if self.chance(0.7) else "translational"

@@ -139,6 +139,16 @@ def all_scenes() -> list[BenchScene]:
             signals=("input.w", "ring.w", "output.w", "vehicle.w", "output_shaft.tau"), stick_slip=True,
             title="planetary 1-2 upshift: brake released, clutch applied",
             steps=(1e-3, 5e-4, 2.5e-4)),
+        BenchScene(
+            key="electric_car", scene="electric_car", params=(), t_end=12.0, dt_out=1e-2,
+            signals=("rotor.w", "wheels.w", "body.v", "half_shafts.tau"),
+            title="electric car: map-based machine, single-speed reduction, regenerative braking",
+            steps=(2e-3, 1e-3, 5e-4)),
+        BenchScene(
+            key="driver_cycle", scene="driver_cycle", params=(), t_end=21.0, dt_out=1e-2,
+            signals=("rotor.w", "body.v", "half_shafts.tau", "driver.I"),
+            title="driver following an ECE-15 hill (closed loop: PI pedal, regenerative and friction brake)",
+            steps=(2e-3, 1e-3, 5e-4)),
         _train(10),
         _train(100),
         _train(1000),

@@ -224,9 +224,53 @@ class Trajectory:
                     idx[f"{dev.name}.{fname}.{wn}"] = lambda kk=kk: self._v(kk)
             for name, j in maps["states"].get(dev.name, ()):
                 idx[name] = lambda j=j: self.Y[:, c.iz[j]]
+            if dev.derived_units:
+                self._derived_recipes(dev, idx, where, taus, maps)
             for j in maps["modes"].get(dev.name, ()):
                 idx[f"{dev.name}.mode"] = lambda j=j: self.modes[:, j].astype(float)
         return idx
+
+    def _derived_recipes(self, dev, idx, where, taus, maps) -> None:
+        """Recipes of the device's ``derived_units`` (``Device.derived``): all computed together on the
+        first request, from the rows, forces and states of this one instance."""
+        from ..errors import ModelError, RegmechError
+        cache: dict = {}
+
+        def compute():
+            if "out" not in cache:
+                e = [self._row_e(w, 0) for w in where]
+                de = [self._row_e(w, 1) for w in where]
+                tau = [np.asarray(tf(), float) for tf in taus]
+                z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] for name, j in maps["states"].get(dev.name, ())}
+                who = f"{type(dev).__name__} '{dev.name}'"
+                try:
+                    out = dev.derived(self.t, self.left, e, de, tau, z)
+                except RegmechError:
+                    raise
+                except Exception as exc:      # a user's derived(): said as a regmech error naming the device
+                    raise ModelError(f"{who}: derived() failed ({type(exc).__name__}: {exc}); it computes the "
+                                     f"signals {sorted(dev.derived_units)} from the run with numpy") from exc
+                missing = set(dev.derived_units) - set(out if isinstance(out, dict) else {})
+                if missing:
+                    raise ModelError(f"{who}: derived() returned no {sorted(missing)}, which derived_units "
+                                     f"declares; return a dict with every declared signal")
+                done = {}
+                for k in dev.derived_units:
+                    try:
+                        val = np.broadcast_to(np.asarray(out[k], float), self.t.shape)
+                    except (TypeError, ValueError) as exc:
+                        raise ModelError(f"{who}: derived signal '{k}' is not a number per output instant "
+                                         f"({exc}); return an array of shape {self.t.shape}") from exc
+                    bad = ~np.isfinite(val)
+                    if bad.any():
+                        raise ModelError(f"{who}: derived signal '{k}' is not finite at t={self.t[bad][0]:.6g}; "
+                                         f"check the device's parameters and derived()")
+                    done[k] = val
+                cache["out"] = done
+            return cache["out"]
+
+        for key in dev.derived_units:
+            idx[f"{dev.name}.{key}"] = lambda key=key: compute()[key]
 
     def _recipes_of(self, comp_name):
         hit = self._recipes.get(comp_name)

@@ -1,6 +1,8 @@
 """Component classes (names and parameters follow the Modelica Standard Library)."""
 
 from .backlash import Backlash, ElastoBacklash
+from .electric import DCMotor, ElectricMotor, SeriesDCMotors
+from .control import PI, Controller, Driver
 from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
 from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, LossyGear, OneWayClutch
 from .gears import IdealGear
@@ -19,4 +21,5 @@ __all__ = [
     "Clutch", "OneWayClutch", "LossyGear", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
     "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
+    "DCMotor", "SeriesDCMotors", "ElectricMotor", "Controller", "PI", "Driver",
 ]

@@ -9,6 +9,7 @@ translational versions.
 from __future__ import annotations
 
 from ..component import Device, Param
+from .heat import DissipatesInDamping, DissipatesPower
 
 
 class TwoFlangeCompliant(Device):
@@ -41,7 +42,7 @@ class Spring(TwoFlangeCompliant):
         return self.c * (e[0] - self.phi_rel0) ** 2 / 2
 
 
-class Damper(TwoFlangeCompliant):
+class Damper(DissipatesPower, TwoFlangeCompliant):
     """Linear damper: ``tau = d * w_rel``; d [N m s/rad or N s/m] >= 0."""
 
     d = Param(check="nonnegative", unit="N m s/rad", doc="damping constant")
@@ -50,7 +51,7 @@ class Damper(TwoFlangeCompliant):
         return self.d * rel_dot
 
 
-class SpringDamper(TwoFlangeCompliant):
+class SpringDamper(DissipatesInDamping, TwoFlangeCompliant):
     """Spring and damper in parallel: ``tau = c (phi_rel - phi_rel0) + d w_rel``."""
 
     c = Param(check="positive", unit="N m/rad", doc="stiffness")
@@ -64,12 +65,13 @@ class SpringDamper(TwoFlangeCompliant):
         return self.c * (e[0] - self.phi_rel0) ** 2 / 2
 
 
-class Shaft(TwoFlangeCompliant):
+class Shaft(DissipatesInDamping, TwoFlangeCompliant):
     """Shaft: elastic ``tau = stiffness*phi_rel + damping*w_rel``, or rigid
     (``phi_rel = 0``, torque from the constraint) when ``stiffness=None``."""
 
     stiffness = Param(None, check="positive", optional=True, unit="N m/rad", doc="torsional stiffness; None = rigid")
     damping = Param(0.0, check="nonnegative", unit="N m s/rad", doc="internal damping")
+    damping_param = "damping"
 
     def device_kind(self):
         return "rigid" if self.stiffness is None else "compliant"

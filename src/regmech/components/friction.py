@@ -38,9 +38,10 @@ import numpy as np
 from ..component import Device, Param, read_only
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK  # noqa: F401  (the mode codes, as before)
 from ..ports import ROTATIONAL, TRANSLATIONAL
+from .heat import DissipatesPower
 
 
-class FrictionDevice(Device):
+class FrictionDevice(DissipatesPower, Device):
     """Base class: subclasses define ``kinetic(w_abs, t, left)`` and ``engaged``."""
 
     kind = "friction"
