@@ -540,7 +540,18 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     with_events = bool(c.friction) and c.friction.n_events > 0
     rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
     atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol)
-    solver = _reusable(reuse, modes, atol_vec)
+    if native:
+        # one native solver serves every segment of the run: re-initialised (IDAReInit) with the segment's
+        # tolerances, modes and event functions (its event bookkeeping is ours, see ``ida_native``)
+        solver = reuse.get("native") if reuse is not None else None
+        if solver is None:
+            solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
+                                  max_steps, deadline, native)
+            if reuse is not None:
+                reuse["native"] = solver
+        solver.set_segment(modes, order.to_solver(atol_vec) if np.ndim(atol_vec) else atol_vec)
+    else:
+        solver = _reusable(reuse, modes, atol_vec)
     if solver is None:
         solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
                               max_steps, deadline, native)
@@ -562,7 +573,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     except (RuntimeError, ValueError, KeyError) as exc:
         raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "
                               f"involved: {_blame(c, y, yp)}") from exc
-    if reuse is not None and sol.status not in (0, 1):
+    if reuse is not None and sol.status not in (0, 1) and not native:
         reuse.clear()            # a mode event (its bookkeeping stays on the events function) or a failure
     stats.segments += 1
     stats.steps += solver.regmech_attempts[1]
