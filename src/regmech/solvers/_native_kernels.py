@@ -2,8 +2,9 @@
 
 The residual and the dense Jacobian are C callbacks (``numba.cfunc``) that SUNDIALS IDA calls directly,
 with no Python in between; the output loop (``drive``) calls ``IDASolve`` once per output time from
-compiled code too. Everything a callback needs is in two arrays whose addresses IDA passes as its user
-data (``ida_native._UserData`` writes them):
+compiled code too. Everything a callback needs is in arrays whose addresses IDA passes as its user data, an int64 array
+``[idata, fdata, hi, hf, ctl, clock_gettime]`` (``hi``, ``hf``: 0 without friction; ``ctl``: the wall-clock
+limit, ``_past_deadline``):
 
 * ``idata`` (int64): ``[N, W, n_sig, n_jac, off_indptr, off_indices, off_perm, off_kind, off_slot,
   off_jk, length]`` and the arrays those offsets point to;
@@ -78,6 +79,35 @@ def _call_ida_solve(typingctx, fn, mem, tout, tret, yy, yp, itask):
     return types.int32(fn, mem, tout, tret, yy, yp, itask), codegen
 
 
+@intrinsic
+def _call_clock(typingctx, fn, clock_id, ts):
+    """``clock_gettime(clock_id, ts)`` through its address ``fn`` (``ts``: the address of two int64)."""
+    def codegen(context, builder, signature, args):
+        vp = ir.IntType(8).as_pointer()
+        fnty = ir.FunctionType(ir.IntType(32), [ir.IntType(32), vp])
+        f = builder.inttoptr(args[0], fnty.as_pointer())
+        return builder.call(f, [builder.trunc(args[1], ir.IntType(32)), builder.inttoptr(args[2], vp)])
+    return types.int32(fn, clock_id, ts), codegen
+
+
+CLOCK_MONOTONIC = 1      # Linux: the clock of Python's time.monotonic()
+
+
+@njit(cache=True, inline="always")
+def _past_deadline(ud):
+    """True (and the flag set) when the run's wall-clock limit has passed: ``ctl = [deadline_ns (0: none),
+    flag, tv_sec, tv_nsec]`` at ``ud[4]``, ``clock_gettime`` at ``ud[5]``; the residual then fails
+    unrecoverably and the caller raises the limit's ``SimulationTimeout`` (``ida_native.NativeIDA.solve``)."""
+    ctl = carray(_i64p(ud[4]), (4,))
+    if ctl[0] <= 0:
+        return False
+    _call_clock(ud[5], CLOCK_MONOTONIC, ud[4] + 16)
+    if ctl[2] * 1000000000 + ctl[3] > ctl[0]:
+        ctl[1] = 1
+        return True
+    return False
+
+
 @njit(cache=True, inline="always")
 def _second_pointer(addr):
     """The pointer stored 8 bytes into the struct that the pointer at ``addr`` points to: the data of a
@@ -142,7 +172,9 @@ def _linear_rows(t, yy, yp, rr, ud):
 
 @cfunc(_RES_SIG, cache=True)
 def residual(t, yy, yp, rr, user_data):
-    ud = carray(_i64p(_address(user_data)), (2,))
+    ud = carray(_i64p(_address(user_data)), (6,))
+    if _past_deadline(ud):
+        return -1
     _linear_rows(t, yy, yp, rr, ud)
     return 0
 
@@ -167,7 +199,9 @@ def _normal_force(hh, hi, fh, hf, j, t, left):
 def residual_friction(t, yy, yp, rr, user_data):
     """The linear rows, then each friction row in the segment's mode (``compile.friction_rows``):
     stuck ``G_f[j] a = 0``; sliding ``lam_j - mode k_j max(fn_j(t), 0) = 0``; free or held ``lam_j = 0``."""
-    ud = carray(_i64p(_address(user_data)), (4,))
+    ud = carray(_i64p(_address(user_data)), (6,))
+    if _past_deadline(ud):
+        return -1
     fdata, buf, left = _linear_rows(t, yy, yp, rr, ud)
     hh, hi, fh, hf = _friction_tables(ud)
     ih = carray(_i64p(ud[0]), (1,))
@@ -196,7 +230,7 @@ def events(t, yy, yp, gout, user_data):
     """The ``2 mf`` event functions of ``hybrid.events`` (``_event_values_small``) in the segment's modes:
     per device its first function (sliding ``mode w_rel``, stuck ``tau0_max - |lam|``, else 1; a relief
     event ``ms lam_holder + tol`` in its place) and its engagement (``fn`` engaged, ``-fn`` not)."""
-    ud = carray(_i64p(_address(user_data)), (4,))
+    ud = carray(_i64p(_address(user_data)), (6,))
     ih = carray(_i64p(ud[0]), (11,))
     fdata = carray(_f64p(ud[1]), (1,))
     hh, hi, fh, hf = _friction_tables(ud)

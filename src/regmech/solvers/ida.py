@@ -149,7 +149,7 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
         # an eligible model (``ida_native.eligible``, checked by the caller): no callbacks into Python
         from .ida_native import NativeIDA
         lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
-        return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband)
+        return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband, deadline)
 
     if order.perm is None and not c.mf and "residual" not in c.__dict__:
         plan = c._plan

@@ -65,6 +65,7 @@ class _Libraries:
         # sunindextype is a C int in scikit-sundae's build (its c_config.pxi); checked below with the vectors
         self.ctx_create = sig(core.SUNContext_Create, i32, i32, ctypes.POINTER(vp))
         self.ctx_free = sig(core.SUNContext_Free, i32, ctypes.POINTER(vp))
+        self.ctx_quiet = sig(core.SUNContext_ClearErrHandlers, i32, vp)
         self.nv_new = sig(nvec.N_VNew_Serial, vp, idx, vp)
         self.nv_ptr = sig(nvec.N_VGetArrayPointer, vp, vp)
         self.nv_length = sig(nvec.N_VGetLength_Serial, idx, vp)
@@ -93,6 +94,8 @@ class _Libraries:
         self.root_init = sig(ida.IDARootInit, i32, vp, i32, vp)
         self.root_direction = sig(ida.IDASetRootDirection, i32, vp, vp)
         self.root_info = sig(ida.IDAGetRootInfo, i32, vp, vp)
+        # the residual kernels read the monotonic clock for a run's wall-clock limit (``_native_kernels``)
+        self.clock_address = ctypes.cast(ctypes.CDLL(None).clock_gettime, vp).value
         self.n_res = sig(ida.IDAGetNumResEvals, i32, vp, ctypes.POINTER(lng))
         self.n_jac = sig(ida.IDAGetNumJacEvals, i32, vp, ctypes.POINTER(lng))
         self.n_steps = sig(ida.IDAGetNumSteps, i32, vp, ctypes.POINTER(lng))
@@ -206,8 +209,6 @@ def eligible(c, linsolver, deadline=None):
         return "Position/Speed sources (their references)"
     if linsolver not in ("dense", "band"):
         return f"linear solver '{linsolver}' (the native path has dense and band)"
-    if deadline is not None:
-        return "a wall-clock limit (timeout_s) is active; its checks run in Python"
     if "residual" in c.__dict__:
         return "the residual is wrapped on the compiled system (a work budget counts its calls in Python)"
     lib = libraries()            # numba first: the signal table needs the kernels' constants
@@ -384,7 +385,8 @@ class NativeIDA:
     ``solve`` initialises IDA, later ones re-initialise it (``IDAReInit``), as scikit-sundae does.
     """
 
-    def __init__(self, c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband=0, uband=0):
+    def __init__(self, c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband=0, uband=0,
+                 deadline=None):
         lib = libraries()
         K = lib.K
         self.lib, self.K, self.c = lib, K, c
@@ -396,22 +398,31 @@ class NativeIDA:
             layout = c._native_layouts[key] = _layout(c, linsolver, order)
         self.idata, self.fdata = layout[0].copy(), layout[1].copy()      # the kernels write into fdata
         self.friction = None
+        # the wall-clock limit (deadline in ns of time.monotonic, 0: none), the flag the residual sets past it, and
+        # clock_gettime's scratch
+        self.ctl = np.zeros(4, np.int64)
+        self.deadline = deadline
+        if deadline is not None:
+            self.ctl[0] = max(1, int(deadline.at * 1e9))
+        hi_ptr = hf_ptr = 0
         if c.mf:
             self.friction = FrictionTables(c, order, friction_laws(c.friction))
-            self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data, self.friction.hi.ctypes.data,
-                                  self.friction.hf.ctypes.data], np.int64)
+            hi_ptr, hf_ptr = self.friction.hi.ctypes.data, self.friction.hf.ctypes.data
+        self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data, hi_ptr, hf_ptr, self.ctl.ctypes.data,
+                              lib.clock_address], np.int64)
+        if c.mf:
             self._rootdir = np.full(2 * c.mf, -1, np.int32)
             self.rootsfound = np.zeros(2 * c.mf, np.int32)
             if linsolver == "dense":
                 hdr = self.fdata[:7]
                 self._jc = slice(int(hdr[4]), int(hdr[5]))
                 self._jcj = slice(int(hdr[5]), int(hdr[6]))
-        else:
-            self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data], np.int64)
         ctx = ctypes.c_void_p()
         if lib.ctx_create(0, ctypes.byref(ctx)) != 0:
             raise SimulationError(f"the native IDA path could not create a SUNDIALS context for model "
                                   f"'{c.model.name}'; run it without native=True")
+        # no printing to stderr: a failure comes back as IDA's flag and is reported as a SimulationError
+        lib.ctx_quiet(ctx)
         yy, yp, at, idv = (lib.nv_new(N, ctx) for _ in range(4))
         if linsolver == "dense":
             A = lib.dense(N, N, ctx)
@@ -509,6 +520,9 @@ class NativeIDA:
         rows, flag = self.K.drive(self.lib.solve_address, self.mem, tspan, self.tret, self.yy, self.yp,
                                   self.ya_address, self.ypa_address, self.perm, T, Y, YP)
         lib.clear_stop(self.mem)
+        if self.ctl[1]:
+            # the residual stopped IDA at the run's wall-clock limit
+            raise self.deadline.error(float(T[rows - 1]))
         nf, nj = ctypes.c_long(), ctypes.c_long()
         lib.n_res(self.mem, ctypes.byref(nf))
         lib.n_jac(self.mem, ctypes.byref(nj))
