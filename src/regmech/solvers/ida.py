@@ -147,9 +147,24 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
 
     if native:
         # an eligible model (``ida_native.eligible``, checked by the caller): no callbacks into Python
-        from .ida_native import NativeIDA
-        lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
-        return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband, deadline)
+        from .ida_native import NATIVE_KEEP_MAX, NativeIDA
+        key = (float(rtol), linsolver, None if order.perm is None else order.perm.tobytes(), max_step, int(max_order),
+               int(max_steps))
+        kept = c.__dict__.setdefault("_native_solvers", {})
+        solver = kept.get(key)
+        if solver is None:
+            lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
+            solver = NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband,
+                               deadline)
+            if c.N <= NATIVE_KEEP_MAX:
+                # a small model's solver serves its next runs too (the accuracy contract's pairs, sweeps): set up
+                # once, re-initialised per segment like the segments of one run
+                if len(kept) >= 4:
+                    kept.pop(next(iter(kept)))
+                kept[key] = solver
+        else:
+            solver.start_run(deadline)
+        return solver
 
     if order.perm is None and not c.mf and "residual" not in c.__dict__:
         plan = c._plan

@@ -37,6 +37,10 @@ _SUPPORTED = ("Constant", "Sine", "Step", "Ramp")
 
 _LIB = None            # the loaded libraries and kernels, or the reason they are not available
 
+#: a compiled system of at most this many unknowns keeps its native solvers for its next runs
+#: (``ida._make_solver``; a few per system, by options: memory of the order of N^2 for the dense matrix)
+NATIVE_KEEP_MAX = 400
+
 
 class _Libraries:
     """SUNDIALS through ctypes, and the numba kernels."""
@@ -455,6 +459,14 @@ class NativeIDA:
         # here IDA's own count of accepted steps (IDAReInit sets it back to zero)
         self.regmech_attempts = [None, 0]
         self._atol = np.ctypeslib.as_array(ctypes.cast(lib.nv_ptr(at), ctypes.POINTER(ctypes.c_double)), (N,))
+
+    def start_run(self, deadline):
+        """Serve another run of the same compiled system (kept by ``ida._make_solver``): its wall-clock limit."""
+        self.deadline = deadline
+        self.ctl[:] = 0
+        if deadline is not None:
+            self.ctl[0] = max(1, int(deadline.at * 1e9))
+        self.regmech_attempts[1] = 0
 
     def set_segment(self, modes, atol):
         """Prepare the next ``solve`` for a segment in ``modes`` with absolute tolerances ``atol`` (solver order):
