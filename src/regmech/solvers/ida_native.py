@@ -368,7 +368,7 @@ def friction_jacobian(c, modes):
     """``(jc, jcj)``: the constant and the ``cj`` part of the dense Jacobian entries in ``modes`` (a model whose
     friction laws are ``linear_law``s: the Jacobian depends on the modes only), cached per mode set."""
     cache = c.__dict__.setdefault("_native_friction_jac", {})
-    key = tuple(int(m) for m in modes)
+    key = np.asarray(modes, np.int64).tobytes()
     hit = cache.get(key)
     if hit is None:
         z = np.zeros(c.N)
