@@ -446,7 +446,7 @@ class CompiledSystem:
         z = self.state_start.copy()
         return self.assemble_y(t0, x, v, z, modes)
 
-    def assemble_y(self, t, x, v, z, modes, rates=True):
+    def assemble_y(self, t, x, v, z, modes, rates=True, known=None):
         """Consistent (y, y') from positions, velocities and device states.
 
         The derivatives of the algebraic unknowns (dummy accelerations and
@@ -454,9 +454,9 @@ class CompiledSystem:
         first predictor: left at zero, a force that starts growing linearly
         fails the error test at any step size, so they are taken from a
         forward difference along the motion (``rates=False`` skips that: only IDA's
-        predictor uses them).
+        predictor uses them). ``known``: ``accelerations(t, x, v, z, modes)`` when the caller has it.
         """
-        a, lam, dz = self.accelerations(t, x, v, z, modes)
+        a, lam, dz = self.accelerations(t, x, v, z, modes) if known is None else known
         y = np.zeros(self.N)
         yp = np.zeros(self.N)
         y[self.ix], y[self.iv], y[self.iad], y[self.ilam], y[self.iz] = x, v, a[self.Dv], lam, z

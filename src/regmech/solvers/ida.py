@@ -249,22 +249,47 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
 _PURE_SIGNALS = ("Constant", "Sine", "Step", "Ramp", "Pulse")
 
 
-def _start_values(model, c, t_start, modes):
-    """``c.initial_y(t_start, modes)`` (a projection and two acceleration solves), remembered on the compiled
-    system for the next run from the same start when every signal of the model is one of regmech's own
-    scalar-parameter signals (a user's callable may not give the same values twice)."""
+def _start_key(model, c, t_start, modes):
+    """What the start values of a run depend on besides the compiled system, or None when they cannot be
+    remembered: every signal of the model must be one of regmech's own scalar-parameter signals (a user's
+    callable may not give the same values twice)."""
     from .common import _signals
     key = [float(t_start), float(c._t_right), tuple(int(m) for m in modes)]
     for comp, pname, sig in _signals(model):
         if type(sig).__module__ != "regmech.signals" or type(sig).__name__ not in _PURE_SIGNALS:
-            return c.initial_y(t_start, modes)
+            return None
         key.append((comp.name, pname, type(sig).__name__, tuple(sorted(vars(sig).items()))))
+    return key
+
+
+def _start_values(model, c, t_start, modes):
+    """``c.initial_y(t_start, modes)`` (a projection and two acceleration solves), remembered on the compiled
+    system for the next run from the same start (``_start_key``)."""
+    key = _start_key(model, c, t_start, modes)
+    if key is None:
+        return c.initial_y(t_start, modes)
     hit = c.__dict__.get("_ida_start")
     if hit is not None and hit[0] == key:
         return hit[1].copy(), hit[2].copy()
     y, yp = c.initial_y(t_start, modes)
     c._ida_start = (key, y.copy(), yp.copy())
     return y, yp
+
+
+def _start_settle(model, c, fr, t_start, modes):
+    """``fr.settle(t_start, None, modes, initial=True)`` (start values and the first mode logic), remembered
+    like ``_start_values`` with the state the mode logic keeps (``ModeLogic.snapshot``)."""
+    key = _start_key(model, c, t_start, modes)
+    if key is None:
+        return fr.settle(t_start, None, modes, initial=True)[:3]
+    hit = c.__dict__.get("_ida_start_settle")
+    if hit is not None and hit[0] == key:
+        _, y, yp, new, snap = hit
+        fr.restore(snap)
+        return y.copy(), yp.copy(), new.copy()
+    y, yp, new, _ = fr.settle(t_start, None, modes, initial=True)
+    c._ida_start_settle = (key, y.copy(), yp.copy(), np.array(new), fr.snapshot())
+    return y, yp, new
 
 
 def _blame(c, y, yp):
@@ -350,7 +375,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     stats = Stats(solver="ida", compile_time=compile_time, steps=0)   # step attempts (see _make_solver)
     stats.extra["steps_are_attempts"] = True
     if fr:
-        y, yp, modes, _ = fr.settle(t_start, None, modes, initial=True)
+        y, yp, modes = _start_settle(model, c, fr, t_start, modes)
     else:
         y, yp = _start_values(model, c, t_start, modes)
     events: list[Event] = []

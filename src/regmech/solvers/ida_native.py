@@ -458,6 +458,7 @@ class NativeIDA:
         # steps taken in the last solve, as the usual path's counter (``ida._make_solver``) reports them:
         # here IDA's own count of accepted steps (IDAReInit sets it back to zero)
         self.regmech_attempts = [None, 0]
+        self._counts = None
         self._atol = np.ctypeslib.as_array(ctypes.cast(lib.nv_ptr(at), ctypes.POINTER(ctypes.c_double)), (N,))
 
     def start_run(self, deadline):
@@ -535,13 +536,14 @@ class NativeIDA:
         if self.ctl[1]:
             # the residual stopped IDA at the run's wall-clock limit
             raise self.deadline.error(float(T[rows - 1]))
-        nf, nj = ctypes.c_long(), ctypes.c_long()
-        lib.n_res(self.mem, ctypes.byref(nf))
-        lib.n_jac(self.mem, ctypes.byref(nj))
-        ns = ctypes.c_long()
-        lib.n_steps(self.mem, ctypes.byref(ns))
-        self.regmech_attempts[1] += int(ns.value)
-        out = _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf.value), int(nj.value), unpermuted=True)
+        counts = self._counts
+        if counts is None:
+            counts = self._counts = [(ctypes.c_long(), f) for f in (lib.n_res, lib.n_jac, lib.n_steps)]
+        for cell, f in counts:
+            f(self.mem, ctypes.byref(cell))
+        nf, nj, ns = (cell.value for cell, _ in counts)
+        self.regmech_attempts[1] += int(ns)
+        out = _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf), int(nj), unpermuted=True)
         if flag == 2:            # a root: the last row is the state there (scikit-sundae's event arrays)
             if lib.root_info(self.mem, self.rootsfound.ctypes.data) < 0:
                 raise RuntimeError("IDAGetRootInfo failed")
