@@ -9,8 +9,10 @@ are made consistent by the compiler (projection onto the constraints,
 accelerations and constraint forces from one sparse KKT solve), so IDA's own
 initial-condition search is not needed.
 
-``native=True`` runs linear models with no Python in IDA's loop (``ida_native``: the same SUNDIALS IDA
-through ctypes, numba-compiled residual, Jacobian and output loop); other models run as below.
+``native=True`` runs linear models, and friction models whose laws are linear in one signal, with no Python
+in IDA's loop (``ida_native``: the same SUNDIALS IDA through ctypes, numba-compiled residual, Jacobian, event
+functions and output loop; one solver per run, re-initialised at every segment, the mode logic in Python at
+the events); other models run as below.
 
 Linear solver: ``dense`` below ``dense_max`` unknowns (60), ``sparse``
 (SuperLU_MT) with the analytic Jacobian above; ``linsolver`` overrides.
@@ -56,7 +58,8 @@ IDA_OPTIONS = OptionSet(
     max_steps=Integer("most IDA steps in one output interval (default 50000)", 1),
     stiff_check=stiff_check_option(),
     native=Flag("run IDA with compiled callbacks and no Python in its loop where the model allows it "
-                "(linear models; needs numba: see regmech.solvers.ida_native; default False)"),
+                "(linear models and friction with laws linear in one signal; needs numba: see "
+                "regmech.solvers.ida_native; default False, solver='auto' sets it when numba is installed)"),
     **chatter_options(),
 )
 

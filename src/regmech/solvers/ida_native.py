@@ -1,4 +1,4 @@
-"""IDA without Python in the loop, for linear models: ``simulate(..., solver="ida", native=True)``.
+"""IDA without Python in the loop, for linear models and friction models linear in each mode: ``simulate(..., solver="ida", native=True)``.
 
 scikit-sundae calls a Python function for every residual evaluation: about 6 us of wrapper and solver
 overhead per call plus the residual itself, and about 3 us per output point. On small models that is
@@ -8,13 +8,19 @@ the residual, the Jacobian and the output loop compiled by numba (``_native_kern
 calls back into Python.
 
 It serves models whose residual is the linear ``F = L [y; y'; u(t); 1]`` of
-``compile.evaluation.EvaluationPlan``: no friction rows, no nonlinear device classes, time-varying
-offsets only through signal values (input slots), no Position/Speed references, signals of the types
-``Constant``, ``Sine``, ``Step`` and ``Ramp``, the dense or band linear solver, and no wall-clock limit
-(``timeout_s``: its checks need Python). ``eligible`` says why a model is not served; the IDA solver
-then runs its usual path. Same solver, options and tolerances as that path; the residual is summed in
-another order, so the answers differ by round-off, which IDA's step control turns into differences of
-the order of the tolerance.
+``compile.evaluation.EvaluationPlan`` (no nonlinear device classes, time-varying offsets only through signal
+values (input slots), no Position/Speed references, signals of the types ``Constant``, ``Sine``, ``Step`` and
+``Ramp``, the dense or band linear solver) plus friction rows whose devices state their law in closed form
+(``FrictionDevice.linear_law``: normal force ``fn = s u(t)``, kinetic torque ``k max(fn, 0)`` at every
+speed, static ``peak`` times that; no lossy gears or one-way clutches). In a segment's modes a friction row
+is ``G_f a = 0`` (stuck), ``lam - mode k max(fn, 0)`` (sliding) or ``lam`` (free, held), and the event
+functions are those of ``hybrid.events``, all evaluated by the kernels; IDA's root finding stops the segment
+at a crossing (every event terminal, downward), and the mode logic (``hybrid``) settles the modes in Python
+before ``NativeIDA.set_segment`` writes the next segment's tables and IDA is re-initialised. ``eligible``
+says why a model is not served; the IDA solver then runs its usual path. A run's wall-clock limit
+(``timeout_s``) is read by the residual kernels (``clock_gettime``). Same solver, options and tolerances as
+that path; the residual is summed in another order, so the answers differ by round-off, which IDA's step
+control turns into differences of the order of the tolerance.
 
 Cost: numba itself (an optional dependency, ``pip install regmech[native]``) takes a fresh process
 about half a second to import and to load its cached kernels; the first run on a machine also compiles
