@@ -1,4 +1,5 @@
-"""IDA without Python in the loop, for linear models and friction models linear in each mode: ``simulate(..., solver="ida", native=True)``.
+"""IDA without Python in the loop, for linear models and friction models linear in each mode:
+``simulate(..., solver="ida", native=True)``.
 
 scikit-sundae calls a Python function for every residual evaluation: about 6 us of wrapper and solver
 overhead per call plus the residual itself, and about 3 us per output point. On small models that is
