@@ -29,7 +29,8 @@ def brake_and_clutch():
     f = m.add(Fixed("fixed"))
     J1, J2, J3 = m.add(Inertia("J1", J=0.5, w0=3.0)), m.add(Inertia("J2", J=1.5)), m.add(Inertia("J3", J=0.8))
     sd = m.add(SpringDamper("sd", c=200.0, d=0.5))
-    b = m.add(Brake("brake", mu=0.4, peak=1.3, fn_max=30.0, f_normalized=Ramp(height=1.0, duration=0.5, start_time=0.1)))
+    b = m.add(Brake("brake", mu=0.4, peak=1.3, fn_max=30.0,
+                    f_normalized=Ramp(height=1.0, duration=0.5, start_time=0.1)))
     c = m.add(Clutch("clutch", mu=0.3, peak=1.2, fn_max=40.0, f_normalized=Sine(amplitude=1.0, freq_hz=0.7, phase=0.5)))
     tq = m.add(Torque("drive", tau=Sine(amplitude=12.0, freq_hz=1.3)))
     m.connect(tq.flange, J1.flange_a)
