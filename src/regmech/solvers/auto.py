@@ -75,6 +75,7 @@ to the chosen solver, which must take them.
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import time
@@ -282,6 +283,7 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     return out
 
 
+@functools.lru_cache(maxsize=64)
 def _accepted(fn) -> set:
     sig = inspect.signature(fn)
     from .options import TIME_ARGUMENTS      # taken by every registered solver (max_points, timeout_s, ...)

@@ -351,24 +351,23 @@ class FrictionTables:
         self._inv = inv
 
     def set_segment(self, modes, engaged, relief):
-        """Write the segment's modes, event kinds, engagement and relief events (``hybrid.events``)."""
-        from ..modes import STUCK, FORWARD, BACKWARD
-        K = self.K
-        modes = np.asarray(modes, np.int64)
-        self.hi[self._mode] = modes
-        self.hi[self._evkind] = np.where(modes == STUCK, K.EV_STUCK,
-                                         np.where((modes == FORWARD) | (modes == BACKWARD), K.EV_SLIDING,
-                                                  K.EV_CONSTANT))
-        self.hi[self._engaged] = np.asarray(engaged, bool)
-        rel = self.hi[self._relief]
-        rel[:] = -1
-        self.hf[self._ms] = 0.0
-        self.hf[self._tol] = 0.0
+        """Write the segment's modes, event kinds, engagement and relief events (``hybrid.events``); plain
+        Python on the few devices of a model (numpy's per-call overhead would be most of it)."""
+        K, hi, hf = self.K, self.hi, self.hf
+        m0, e0, g0, r0 = self._mode.start, self._evkind.start, self._engaged.start, self._relief.start
+        s0, t0 = self._ms.start, self._tol.start
+        for j in range(self.mf):
+            m = int(modes[j])
+            hi[m0 + j] = m
+            hi[e0 + j] = K.EV_STUCK if m == 0 else K.EV_SLIDING if m in (1, -1) else K.EV_CONSTANT
+            hi[g0 + j] = 1 if engaged[j] else 0
+            hi[r0 + j] = -1
+            hf[s0 + j] = 0.0
+            hf[t0 + j] = 0.0
         for j, il, sign, tol in relief:
-            rel[j] = self._inv[il]
-            self.hf[self._ms.start + j] = float(modes[j]) * sign
-            self.hf[self._tol.start + j] = tol
-        self.hi[self._relief] = rel
+            hi[r0 + j] = self._inv[il]
+            hf[s0 + j] = float(modes[j]) * sign
+            hf[t0 + j] = tol
 
 
 def friction_jacobian(c, modes):
@@ -480,7 +479,7 @@ class NativeIDA:
         """Prepare the next ``solve`` for a segment in ``modes`` with absolute tolerances ``atol`` (solver order):
         the friction rows' modes and event functions (from the friction set's state after ``settle``) and the
         Jacobian's constants of the mode set."""
-        self._atol[:] = np.broadcast_to(np.asarray(atol, float), (self.N,))
+        self._atol[:] = atol
         self._new_tolerances = True
         if self.friction is None:
             return
