@@ -62,6 +62,29 @@ def sliding_blocks():
     return m
 
 
+def friction_chain(n=40):
+    """Inertias on spring-dampers with a clutch every tenth link (engaged by Steps) and a brake at the end:
+    85 unknowns, IDA's band solver on a reordering (the friction rows in the solver's order)."""
+    m = rm.Model("friction_chain")
+    f = m.add(Fixed("fixed"))
+    J = [m.add(Inertia(f"J{i}", J=1.0 + 0.1 * (i % 3), w0=2.0 if i == 0 else 0.0)) for i in range(n)]
+    tq = m.add(Torque("drive", tau=Sine(amplitude=20.0, freq_hz=2.0)))
+    m.connect(tq.flange, J[0].flange_a)
+    m.connect(tq.support, f.flange)
+    for i in range(n - 1):
+        if i % 10 == 5:
+            d = m.add(Clutch(f"c{i}", mu=0.4, peak=1.2, fn_max=30.0,
+                             f_normalized=Step(height=1.0, start_time=0.1 * (i // 10 + 1))))
+        else:
+            d = m.add(SpringDamper(f"s{i}", c=2e3, d=2.0))
+        m.connect(J[i].flange_b, d.flange_a)
+        m.connect(d.flange_b, J[i + 1].flange_a)
+    b = m.add(Brake("brake", mu=0.5, peak=1.3, fn_max=10.0, f_normalized=Step(height=1.0, start_time=0.5)))
+    m.connect(J[-1].flange_b, b.flange)
+    m.connect(b.support, f.flange)
+    return m
+
+
 def _first(x):
     return x[0] if isinstance(x, tuple) else x
 
@@ -73,6 +96,7 @@ SCENES = {
     "simultaneous_lock": (lambda: _first(H.simultaneous_lock()), 3.0),
     "zero_speed_engagement": (lambda: _first(H.zero_speed_engagement()), 1.0),
     "gear_shift": (gear_shift, 2.0),
+    "friction_chain_band": (friction_chain, 1.5),
 }
 
 
