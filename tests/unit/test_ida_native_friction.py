@@ -249,3 +249,47 @@ def test_a_repeated_run_equals_a_fresh_model_s_first_run(native):
     other.components["J1"].w0 = 1.0
     np.testing.assert_array_equal(changed["J2.w"], other.simulate(3.0, **kw)["J2.w"])
     assert _path(changed) != _path(first) or not np.array_equal(changed["J2.w"], first["J2.w"])
+
+
+@pytest.mark.parametrize("key", ["coupled_clutches", "brake_and_clutch", "sliding_blocks"])
+def test_kernels_evaluate_the_residual_and_event_functions_of_every_mode_set(key):
+    """The compiled residual and event functions against the hybrid layer's own (``CompiledSystem.residual``,
+    ``FrictionSet.event_values``) at random states and times, in every combination of modes and engagement:
+    the kernels restate the friction laws, so any difference would be a silent wrong answer."""
+    import ctypes
+    import itertools
+    from regmech.hybrid import attach
+    from regmech.modes import BACKWARD, FORWARD, FREE, HELD, STUCK  # noqa: F401
+    from regmech.solvers.ida import _Ordering
+    m = SCENES[key][0]()
+    c = attach(m.compile())
+    fr = c.friction
+    N = c.N
+    solver = ida_native.NativeIDA(c, 1e-6, np.full(N, 1e-8), "dense", _Ordering(N), None, 5, 500)
+    K = solver.K
+    rng = np.random.default_rng(7)
+    gout, ref = np.zeros(2 * fr.mf), np.zeros(N)
+    as_double = ctypes.POINTER(ctypes.c_double)
+    lib = solver.lib
+    rr = lib.nv_new(N, solver._handles[4])            # the residual kernel writes into an N_Vector
+    res = np.ctypeslib.as_array(ctypes.cast(lib.nv_ptr(rr), as_double), (N,))
+    for modes in itertools.product((STUCK, FORWARD, BACKWARD, FREE, HELD), repeat=fr.mf):
+        modes = np.array(modes)
+        fr.engaged = rng.random(fr.mf) < 0.5
+        fr._relief = []
+        solver.set_segment(modes, np.full(N, 1e-8))
+        for _ in range(3):
+            t = float(rng.uniform(0.0, 2.0))
+            c._t_right = t if rng.random() < 0.3 else np.inf        # left limits at a segment's end too
+            solver.fdata[0] = c._t_right
+            y, yp = rng.standard_normal(N) * 3.0, rng.standard_normal(N) * 3.0
+            solver.ya[:], solver.ypa[:] = y, yp
+            fr._small_for = fr._at_segment = None
+            fr._ev_key = None
+            assert K.events.ctypes(t, solver.yy, solver.yp, gout.ctypes.data_as(as_double),
+                                   solver.user.ctypes.data) == 0
+            np.testing.assert_allclose(gout, fr.event_values(t, y, yp, modes), rtol=1e-13, atol=1e-13)
+            assert K.residual_friction.ctypes(t, solver.yy, solver.yp, rr, solver.user.ctypes.data) == 0
+            c.residual(t, y, yp, ref, modes)
+            np.testing.assert_allclose(res, ref, rtol=1e-12, atol=1e-12)
+    lib.nv_free(rr)
