@@ -52,6 +52,7 @@ import json
 import math
 import os
 import platform
+import shlex
 import statistics
 import subprocess
 import sys
@@ -575,7 +576,7 @@ def main(argv=None) -> None:
         return
     t_start = time.perf_counter()
     command = "python benchmarks/bench_peers.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:]))
+        f" {shlex.quote(a)}" for a in (argv if argv is not None else sys.argv[1:]))
     log = lambda m: print(m, file=sys.stderr, flush=True)          # noqa: E731
     facts = machine_facts()
     keys = args.cases or list(CASES)
