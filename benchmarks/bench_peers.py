@@ -33,8 +33,9 @@ Protocol, per case and rtol (1e-6, 1e-9; atol = rtol * 1e-2, regmech's default):
 regmech's *default call* for a row at rtol r is ``m.simulate(t_end, dt_out,
 accuracy=1e3 r)`` (solver "auto"; at r = 1e-6 that is the plain default call
 with its accuracy 1e-3); its *best solver* is the fastest regmech run (auto,
-ida and scipy:DOP853 at rtol r, expm under ``accuracy=1e3 r`` and the opt-in
-native IDA path (``native=True``) on the linear models) whose error is within the row's error bound 1e3 r. The fastest peer
+ida and scipy:DOP853 at rtol r, expm under ``accuracy=1e3 r`` on the linear models and the native IDA
+path (``native=True``, which ``auto`` takes when numba is installed)) whose error is within the row's error
+bound 1e3 r. The fastest peer
 is taken among the peers within the same bound. A target is met when the
 time ratio is within it and regmech's error is within the bound.
 
@@ -51,6 +52,7 @@ import json
 import math
 import os
 import platform
+import shlex
 import statistics
 import subprocess
 import sys
@@ -174,17 +176,16 @@ def regmech_tools(case: Case, rtol: float, budget: float) -> list[Tool]:
                ("regmech scipy:DOP853", {"solver": "scipy:DOP853", "rtol": rtol})]
     if case.linear:
         configs.append(("regmech expm", {"solver": "expm", "accuracy": acc}))
-        # the opt-in native IDA path (numba; linear models): it does not serve runs under timeout_s, so it
-        # runs without one (IDA's own max_steps bounds it)
-        configs.append(("regmech ida native", {"solver": "ida", "rtol": rtol, "native": True}))
+    # the native IDA path (numba kernels; linear models and friction models whose laws are linear in one signal),
+    # which solver="auto" takes when numba is installed; named here to show it apart from the Python callbacks
+    configs.append(("regmech ida native", {"solver": "ida", "rtol": rtol, "native": True}))
     tools = []
     for label, kw in configs:
         m = case.regmech_builder()
         m.compile()
 
         def run(m=m, kw=kw):
-            limit = {} if kw.get("native") else {"timeout_s": RUN_TIMEOUT}
-            res = m.simulate(case.t_end, case.dt_out, **limit, **kw)
+            res = m.simulate(case.t_end, case.dt_out, timeout_s=RUN_TIMEOUT, **kw)
             values = {k: res[k] for k in case.signals}           # the named results, inside the timing
             return res, values
         tools.append(Tool(label, "regmech", run))
@@ -446,9 +447,11 @@ def table(header, rows) -> list[str]:
 TOOL_FIELDS = ("label", "group", "build", "first", "times", "cpu", "error", "info", "failed", "single")
 
 
-def save_raw(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command):
+def save_raw(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command,
+             load_note=""):
     """Every measurement as JSON beside the report, so that ``--rewrite`` can lay it out again without runs."""
     raw = {"facts": facts, "builds": builds, "refs": refs, "big": big, "notes": notes, "repeats": repeats,
+           "load_note": load_note,
            "budget": budget, "wall": wall, "load_end": load_end, "command": command,
            "results": [{"case": k, "rtol": r, "tools": [{f: getattr(t, f) for f in TOOL_FIELDS} for t in tools]}
                        for (k, r), tools in results.items()]}
@@ -463,7 +466,8 @@ def load_raw(path: Path) -> dict:
     return raw
 
 
-def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command):
+def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command,
+                 load_note=""):
     L = ["# Peers: regmech against hand-written scipy and CasADi (issue 15)", "",
          f"Produced by `{command}` in {wall / 60:.1f} min. Each case and rtol: every tool once as a warm-up, then "
          f"{repeats} rounds in alternating order in one process; times are medians (a tool whose warm-up took over "
@@ -478,7 +482,7 @@ def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, 
          "Machine and versions:", ""]
     L += [f"- {k}: {v}" for k, v in facts] + [f"- uptime at end: {load_end}", ""]
     L += ["The machine is shared with other agents' work (see the load): absolute times are noisy, the ratios "
-          "(measured side by side, interleaved) are what to read.", ""]
+          "(measured side by side, interleaved) are what to read." + (f" {load_note}" if load_note else ""), ""]
     L += ["## Targets", ""]
     rows = []
     for (key, rtol), tools in results.items():
@@ -496,7 +500,8 @@ def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, 
         L += ["The chain of `bench_foundation.py` with 100,000 inertias in a fresh Python process: build, compile, "
               "simulate 1 s at rtol 1e-6 with ida (output every 10 ms), then every inertia's speed read by name "
               "(`res[\"J<i>.w\"]`). Measured by this script: no separate 100,000-chain script was on main when "
-              "it was written.", ""]
+              "it was written." + (f" Not repeated in this run: the measurement of the run that started "
+                                   f"{big['kept_from']} (`--keep-bigchain`)." if "kept_from" in big else ""), ""]
         if "failed" in big:
             L += [f"Failed: {big['failed']}", ""]
         else:
@@ -546,6 +551,9 @@ def main(argv=None) -> None:
     ap.add_argument("--rtols", nargs="*", type=float, default=list(RTOLS))
     ap.add_argument("--budget", type=float, default=30.0, help="a warm-up longer than this [s] is not repeated")
     ap.add_argument("--no-bigchain", action="store_true", help="skip the 100,000-inertia chain")
+    ap.add_argument("--keep-bigchain", action="store_true",
+                    help="skip the 100,000-inertia chain and report the one stored in <out>.json (marked with its date)")
+    ap.add_argument("--load-note", default="", help="a sentence on the other work on the machine during the run")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "peers.md"))
     ap.add_argument("--rewrite", action="store_true",
                     help="lay the report out again from the stored measurements (<out>.json), no runs")
@@ -568,7 +576,7 @@ def main(argv=None) -> None:
         return
     t_start = time.perf_counter()
     command = "python benchmarks/bench_peers.py" + "".join(
-        f" {a}" for a in (argv if argv is not None else sys.argv[1:]))
+        f" {shlex.quote(a)}" for a in (argv if argv is not None else sys.argv[1:]))
     log = lambda m: print(m, file=sys.stderr, flush=True)          # noqa: E731
     facts = machine_facts()
     keys = args.cases or list(CASES)
@@ -594,12 +602,19 @@ def main(argv=None) -> None:
             results[(key, rtol)] = measure_row(case, rtol, ref, args.repeats, args.budget, notes, log,
                                                args.probe_limit)
     big = None
-    if not args.no_bigchain:
+    if args.keep_bigchain:
+        if raw_path.exists():
+            old = json.loads(raw_path.read_text())
+            big = old.get("big")
+            if big is not None and "kept_from" not in big:
+                big["kept_from"] = next((v for k, v in old.get("facts", []) if k == "uptime at start"), "?")
+    elif not args.no_bigchain:
         log(f"chain of {BIG_N:,}: end to end in a subprocess")
         big = run_bigchain()
     load_end = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     out.parent.mkdir(parents=True, exist_ok=True)
     raw = dict(facts=facts, results=results, builds=builds, refs=refs, big=big, notes=notes, repeats=args.repeats,
+               load_note=args.load_note,
                budget=args.budget, wall=time.perf_counter() - t_start, load_end=load_end, command=command)
     save_raw(raw_path, **raw)
     write_report(out, **raw)

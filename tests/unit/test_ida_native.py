@@ -92,8 +92,14 @@ def test_native_segments_at_time_events_use_left_limits():
         assert float(np.abs(a[name] - b[name]).max()) <= 1e-6 * scale
 
 
+def _speed_dependent_clutch():
+    m = coupled_clutches()
+    m.components["clutch1"].mu_table = [[0.0, 0.5], [5.0, 0.3]]
+    return m
+
+
 @pytest.mark.parametrize("model, reason", [
-    (coupled_clutches, "friction"),
+    (_speed_dependent_clutch, "speed-dependent"),
     (lambda: chain(3, tau=Function(lambda t: np.sin(t))), "Function"),
 ])
 def test_models_the_native_path_cannot_serve_run_the_usual_path_and_say_why(model, reason):
@@ -106,14 +112,23 @@ def test_models_the_native_path_cannot_serve_run_the_usual_path_and_say_why(mode
                                   plain["J1.w" if "J1.w" in plain.names else "J0.w"])
 
 
-def test_position_and_speed_sources_and_time_limits_are_not_native():
+def test_position_and_speed_sources_are_not_native_but_time_limits_are():
     m = chain(3)
     m.add(Speed("spd", w_ref=Sine(amplitude=1.0, freq_hz=1.0)))
     m.connect(m.components["spd"].flange, m.components["J2"].flange_b)
     res = m.simulate(0.2, dt_out=0.05, solver="ida", native=True)
     assert "Position/Speed" in res.stats.extra["native"]
+    # the residual kernels read the clock (``_native_kernels._past_deadline``)
     res = chain(3).simulate(0.2, dt_out=0.05, solver="ida", native=True, timeout_s=60)
-    assert "timeout_s" in res.stats.extra["native"]
+    assert res.stats.extra["native"] is True
+
+
+def test_a_native_run_past_its_time_limit_raises_simulation_timeout():
+    m = chain(10)
+    m.simulate(0.05, dt_out=0.01, solver="ida", native=True)          # kernels loaded before the limit starts
+    with pytest.raises(rm.SimulationTimeout, match="timed out"):
+        # about 2e7 steps at rtol 1e-10: far longer than the limit of 0.2 s on any machine
+        m.simulate(2000.0, dt_out=1.0, solver="ida", native=True, rtol=1e-10, max_steps=10**9, timeout_s=0.2)
 
 
 def test_native_failure_is_a_simulation_error_naming_the_model():

@@ -83,7 +83,7 @@ class CompiledSystem:
 
     # -------------------------------------------------------------- pickling
     #: caches that hold SuperLU factorisations (not picklable) or plans derived from them; rebuilt on use
-    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form")
+    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form", "_native_solvers")
 
     def __getstate__(self):
         """Everything but the factorisation caches (``KernelGroup`` leaves out its lambdified template)."""
@@ -262,7 +262,7 @@ class CompiledSystem:
     # ----------------------------------------------------- consistent values
     def _kkt(self, modes, relations):
         """LU of the acceleration-level system for a mode set (``compile.kkt``), cached per mode set."""
-        key = (tuple(int(m) for m in modes), tuple(relations)) if self.mf else ()
+        key = (np.asarray(modes, np.int64).tobytes(), relations) if self.mf else ()
         hit = self._kkt_cache.get(key)
         if hit is not None:
             return hit
@@ -311,7 +311,13 @@ class CompiledSystem:
         out = plan.device_outputs(x, v, z, t, t >= self._t_right, self._sx, self._sv, self._sz)
         tau, dz = out[:plan.n_c], out[plan.n_c:]
         gp, gv = self._refs(t)
-        parts = [-(self.ScT @ tau), gp[2], gv[1]]
+        ScT = self.__dict__.get("_ScT_fast")
+        if ScT is None:
+            # a small model's dense copy: scipy's sparse product costs some 10 us of dispatch per call, and the
+            # mode logic solves this system several times at every event
+            ScT = self._ScT_fast = (self.ScT.toarray() if self.ScT.shape[0] * self.ScT.shape[1] <= 4096
+                                    else self.ScT)
+        parts = [-(ScT @ tau), gp[2], gv[1]]
         relations = ()
         if self.mf:
             relations, rhs_f = self.friction.relations(t, v, modes)
@@ -472,7 +478,7 @@ class CompiledSystem:
         z = self.state_start.copy()
         return self.assemble_y(t0, x, v, z, modes)
 
-    def assemble_y(self, t, x, v, z, modes, rates=True):
+    def assemble_y(self, t, x, v, z, modes, rates=True, known=None):
         """Consistent (y, y') from positions, velocities and device states.
 
         The derivatives of the algebraic unknowns (dummy accelerations and
@@ -480,9 +486,9 @@ class CompiledSystem:
         first predictor: left at zero, a force that starts growing linearly
         fails the error test at any step size, so they are taken from a
         forward difference along the motion (``rates=False`` skips that: only IDA's
-        predictor uses them).
+        predictor uses them). ``known``: ``accelerations(t, x, v, z, modes)`` when the caller has it.
         """
-        a, lam, dz = self.accelerations(t, x, v, z, modes)
+        a, lam, dz = self.accelerations(t, x, v, z, modes) if known is None else known
         y = np.zeros(self.N)
         yp = np.zeros(self.N)
         y[self.ix], y[self.iv], y[self.iad], y[self.ilam], y[self.iz] = x, v, a[self.Dv], lam, z

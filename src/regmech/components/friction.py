@@ -82,6 +82,18 @@ class FrictionDevice(DissipatesPower, Device):
         tau0 = self.kinetic(0.0, t, left)[0]
         return tau0, self.peak_ratio() * tau0
 
+    def linear_law(self):
+        """The device's laws in closed form when they are linear in one signal, else None.
+
+        Returns ``(signal, fn_scale, k, peak)`` meaning: normal force ``fn = fn_scale * signal(t)``
+        [N] (the device is Free when ``fn <= 0``), kinetic torque ``tau_k = k * max(fn, 0)`` at every
+        relative speed (``k`` [m]: a constant friction coefficient times the geometry), capacities
+        ``tau0 = tau_k`` and ``tau0_max = peak * tau0``. Compiled solvers (``solvers.ida_native``)
+        evaluate the device from these numbers instead of calling its methods, so a subclass that
+        states another law (it overrides a method) gets None here.
+        """
+        return None
+
 
 class _MuMixin:
     """mu(w) from a constant ``mu`` or a ``mu_table`` of (w, mu) points (w >= 0)."""
@@ -100,6 +112,17 @@ class _MuMixin:
         if w_abs <= ws[0]:
             return float(mus[0]), 0.0
         return float(mus[k] + slope * (w_abs - ws[k])), float(slope)
+
+    def _constant_mu(self):
+        """mu when it does not depend on the relative speed (a constant, or a one-point table), else None."""
+        tab = self._values.get("mu_table")
+        if tab is None:
+            return float(self._values["mu"])
+        return float(tab[0, 1]) if len(tab) == 1 else None
+
+    def _states_own_law(self, base, names) -> bool:
+        """True when this class overrides none of ``base``'s methods ``names`` (it keeps base's law)."""
+        return all(getattr(type(self), n) is getattr(base, n) for n in names)
 
     def validate(self):
         tab = self._values.get("mu_table")
@@ -152,6 +175,15 @@ class Clutch(_MuMixin, FrictionDevice):
             return fn, tau0, peak * tau0
         at.signals = (sig,)
         return at
+
+    #: the methods whose formulas ``linear_law`` restates
+    _LAW = ("kinetic", "normal_force", "capacity_function", "capacities", "relation", "peak_ratio", "_mu")
+
+    def linear_law(self):
+        mu = self._constant_mu()
+        if mu is None or self.one_way or not self._states_own_law(Clutch, self._LAW):
+            return None
+        return self.f_normalized, float(self.fn_max), mu * float(self.cgeo), float(self.peak)
 
 
 class OneWayClutch(Clutch):
@@ -222,6 +254,14 @@ class FrictionContact(_MuMixin, FrictionDevice):
         fn = max(self.normal_force(t, left), 0.0)
         mu, dmu = self._mu(w_abs)
         return mu * fn, dmu * fn
+
+    _LAW = ("kinetic", "normal_force", "capacity_function", "capacities", "relation", "peak_ratio", "_mu")
+
+    def linear_law(self):
+        mu = self._constant_mu()
+        if mu is None or not self._states_own_law(FrictionContact, self._LAW):
+            return None
+        return self.fn, 1.0, mu, float(self.peak_ratio())
 
 
 class BearingFriction(FrictionDevice):

@@ -96,7 +96,7 @@ class GearSides:
         self.quadrant[j] = q
         return True
 
-    def _assemble_restart(self, t, x, v, z, modes, lam):
+    def _assemble_restart(self, t, x, v, z, modes, lam, known=None):
         """Consistent ``(y, y')`` of the settled modes.
 
         A lossy gear whose driving side was decided at a tie (``_fix_quadrant``: by where the
@@ -105,11 +105,12 @@ class GearSides:
         assembled with that law: they then satisfy the residual to round-off (with the segment's
         law they missed it by up to 1e-9 of the torques, and IDA at rtol 1e-10 failed its error
         test at the restart). Both laws agree there to that round-off; the segment keeps its
-        quadrant for the event functions.
+        quadrant for the event functions. ``known``: the accelerations of ``modes`` at (t, x, v, z) when the
+        caller has them (used without lossy gears, whose law may change here).
         """
         c = self.c
         if not self._coupled_rows:
-            return c.assemble_y(t, x, v, z, modes)
+            return c.assemble_y(t, x, v, z, modes, known=known)
         keep = self.quadrant.copy()
         self.quadrant = self._iterate_quadrants(v, lam, modes).copy()
         try:

@@ -53,17 +53,27 @@ class Holding:
         c = self.c
         if self._Gd is None or c.n + c.mp + c.mv + self.mf > LOCK_DENSE_MAX:
             return None
-        rigid = c.__dict__.get("_lock_rigid")
-        if rigid is None:
-            rigid = c._lock_rigid = c.Gpv.toarray()
-        gp, gv = c._refs(t)
-        A = np.vstack([rigid, self._Gd[lock]])
-        r = np.concatenate([gp[1], gv[0], np.zeros(int(lock.sum()))]) - A @ v
-        inv_m = 1.0 / np.maximum(c.mass, 1e-300 + 1e-12 * c.mass.max(initial=1.0))
-        lu, piv, info = dgetrf((A * inv_m) @ A.T)
-        d = np.abs(np.diagonal(lu))
-        if info != 0 or not np.all(np.isfinite(d)) or d.min(initial=1.0) <= PIVOT_TOL * d.max(initial=1.0):
+        # the matrix depends on the set of locked rows only: its factors are kept per set (a run meets a few)
+        cache = c.__dict__.setdefault("_lock_factors", {})
+        key = lock.tobytes()
+        hit = cache.get(key)
+        if hit is None:
+            rigid = c.__dict__.get("_lock_rigid")
+            if rigid is None:
+                rigid = c._lock_rigid = c.Gpv.toarray()
+            A = np.vstack([rigid, self._Gd[lock]])
+            inv_m = 1.0 / np.maximum(c.mass, 1e-300 + 1e-12 * c.mass.max(initial=1.0))
+            lu, piv, info = dgetrf((A * inv_m) @ A.T)
+            d = np.abs(np.diagonal(lu))
+            ok = not (info != 0 or not np.all(np.isfinite(d)) or d.min(initial=1.0) <= PIVOT_TOL * d.max(initial=1.0))
+            if len(cache) > 64:
+                cache.clear()
+            hit = cache[key] = (A, inv_m, lu, piv, ok)
+        A, inv_m, lu, piv, ok = hit
+        if not ok:
             return None
+        gp, gv = c._refs(t)
+        r = np.concatenate([gp[1], gv[0], np.zeros(int(lock.sum()))]) - A @ v
         dv = inv_m * (A.T @ dgetrs(lu, piv, r)[0])
         dv += inv_m * (A.T @ dgetrs(lu, piv, r - A @ dv)[0])
         scale = np.maximum(1.0, np.abs(r) + np.abs(A) @ np.abs(dv))
@@ -121,6 +131,9 @@ class Holding:
         function is set (the device stays sliding until its own speed leaves zero).
         """
         c = self.c
+        m = np.asarray(modes)
+        if not (np.any(m == STUCK) and np.any((m == FORWARD) | (m == BACKWARD))):
+            return []            # no device is sliding while another holds: nothing below can apply
         x, v, a, lam_all, _ = c.unpack(y, yp)
         w = self.w_rel(v)
         arel = self.w_rel(a)

@@ -92,10 +92,12 @@ class ModeLogic:
         self._flips = set()
         # 2. stuck devices: holding torques of the whole stuck set from one KKT solve; every device
         #    beyond its tau0_max breaks away at once (as in one Modelica event iteration), then repeat
+        known = None
         for _ in range(4 * self.mf + 4):
             v = self._lock_velocities(t, x, v, new, old)
             try:
                 a, lam, dz = c.accelerations(t, x, v, z, new)
+                known = (a, lam, dz)
             except StructureError:
                 if not self._share_redundant(t, x, v, z, new):
                     raise
@@ -134,7 +136,8 @@ class ModeLogic:
         else:
             raise SimulationError(f"stick/slip logic did not settle at t={t:.9g} for "
                                   f"{[d.name for d in self.devices]}")
-        y, yp = self._assemble_restart(t, x, v, z, new, lam)
+        # the last pass solved the accelerations of the settled modes at (t, x, v, z): the restart reuses them
+        y, yp = self._assemble_restart(t, x, v, z, new, lam, known)
         self._check_sliding_sides(t, y, yp, new, scale)
         self._relief = self._relief_events(t, y, yp, new, scale)
         self._ev_key = None
@@ -168,6 +171,20 @@ class ModeLogic:
                     f"{'Forward' if modes[j] == FORWARD else 'Backward'} with w_rel = {w[j]:.6g}, against its own "
                     f"direction (its friction would supply power). This is a gap in regmech's mode logic: please "
                     f"report it with the model; solver='ida' or a tighter tolerance may avoid the instant.")
+
+    def snapshot(self):
+        """The state ``settle`` leaves behind (driving sides, relief events, engagement), to ``restore`` it with
+        the values of a settle that is not repeated (a run starting where an earlier one started)."""
+        return self.quadrant.copy(), list(self._relief), self.engaged.copy(), set(self._flips)
+
+    def restore(self, snap):
+        quadrant, relief, engaged, flips = snap
+        self.quadrant[:] = quadrant
+        self._relief = list(relief)
+        self.engaged = engaged.copy()
+        self._flips = set(flips)
+        self._ev_key = None
+        self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
 
     @staticmethod
     def _one_way_step(dev, j, old, engaged, w, lam, crossed, initial, scale, t):

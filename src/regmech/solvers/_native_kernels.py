@@ -2,12 +2,19 @@
 
 The residual and the dense Jacobian are C callbacks (``numba.cfunc``) that SUNDIALS IDA calls directly,
 with no Python in between; the output loop (``drive``) calls ``IDASolve`` once per output time from
-compiled code too. Everything a callback needs is in two arrays whose addresses IDA passes as its user
-data (``ida_native._UserData`` writes them):
+compiled code too. Everything a callback needs is in arrays whose addresses IDA passes as its user data, an int64 array
+``[idata, fdata, hi, hf, ctl, clock_gettime]`` (``hi``, ``hf``: 0 without friction; ``ctl``: the wall-clock
+limit, ``_past_deadline``):
 
 * ``idata`` (int64): ``[N, W, n_sig, n_jac, off_indptr, off_indices, off_perm, off_kind, off_slot,
   off_jk, length]`` and the arrays those offsets point to;
-* ``fdata`` (float64): ``[t_right, off_data, off_par, off_buf, off_jc, off_jcj, length]`` and the arrays.
+* ``fdata`` (float64): ``[t_right, off_data, off_par, off_buf, off_jc, off_jcj, length]`` and the arrays;
+* for a model with friction devices (``residual_friction``, ``events``), a second pair, ``hi`` (int64:
+  ``[mf, off_row, off_sptr, off_sidx, off_wptr, off_widx, off_lam_buf, off_lam_sol, off_sig_kind, off_mode,
+  off_evkind, off_engaged, off_relief, length]``) and ``hf`` (float64: ``[off_scoef, off_wcoef, off_sig_par,
+  off_fn_scale, off_k, off_peak, off_relief_ms, off_relief_tol, length]``), written by
+  ``ida_native.FrictionTables``; the per-segment parts (mode, event kind, engagement, relief event of each
+  device) are rewritten at every segment start.
 
 The residual is ``F = L [y; y'; u(t); 1]`` (``compile.evaluation.EvaluationPlan`` of a model without
 nonlinear devices or friction): ``buf`` holds that vector, ``u(t)`` the signal values at their slots.
@@ -28,6 +35,10 @@ from numba.extending import intrinsic
 # signal kinds (``ida_native.signal_table``)
 CONSTANT, SINE, STEP, RAMP = 0, 1, 2, 3
 N_PAR = 5
+# a friction device's first event function in the segment's modes (``hybrid.events``)
+EV_SLIDING, EV_STUCK, EV_CONSTANT = 0, 1, 2
+# the mode codes of ``regmech.modes`` (STUCK 0, FORWARD 1, BACKWARD -1; FREE and HELD carry no torque)
+M_STUCK, M_FORWARD, M_BACKWARD = 0, 1, -1
 
 
 @intrinsic
@@ -68,6 +79,35 @@ def _call_ida_solve(typingctx, fn, mem, tout, tret, yy, yp, itask):
     return types.int32(fn, mem, tout, tret, yy, yp, itask), codegen
 
 
+@intrinsic
+def _call_clock(typingctx, fn, clock_id, ts):
+    """``clock_gettime(clock_id, ts)`` through its address ``fn`` (``ts``: the address of two int64)."""
+    def codegen(context, builder, signature, args):
+        vp = ir.IntType(8).as_pointer()
+        fnty = ir.FunctionType(ir.IntType(32), [ir.IntType(32), vp])
+        f = builder.inttoptr(args[0], fnty.as_pointer())
+        return builder.call(f, [builder.trunc(args[1], ir.IntType(32)), builder.inttoptr(args[2], vp)])
+    return types.int32(fn, clock_id, ts), codegen
+
+
+CLOCK_MONOTONIC = 1      # Linux: the clock of Python's time.monotonic()
+
+
+@njit(cache=True, inline="always")
+def _past_deadline(ud):
+    """True (and the flag set) when the run's wall-clock limit has passed: ``ctl = [deadline_ns (0: none),
+    flag, tv_sec, tv_nsec]`` at ``ud[4]``, ``clock_gettime`` at ``ud[5]``; the residual then fails
+    unrecoverably and the caller raises the limit's ``SimulationTimeout`` (``ida_native.NativeIDA.solve``)."""
+    ctl = carray(_i64p(ud[4]), (4,))
+    if ctl[0] <= 0:
+        return False
+    _call_clock(ud[5], CLOCK_MONOTONIC, ud[4] + 16)
+    if ctl[2] * 1000000000 + ctl[3] > ctl[0]:
+        ctl[1] = 1
+        return True
+    return False
+
+
 @njit(cache=True, inline="always")
 def _second_pointer(addr):
     """The pointer stored 8 bytes into the struct that the pointer at ``addr`` points to: the data of a
@@ -100,9 +140,9 @@ def _signal(kind, p, t, left):
 _RES_SIG = types.int32(types.float64, types.voidptr, types.voidptr, types.voidptr, types.voidptr)
 
 
-@cfunc(_RES_SIG, cache=True)
-def residual(t, yy, yp, rr, user_data):
-    ud = carray(_i64p(_address(user_data)), (2,))
+@njit(cache=True, inline="always")
+def _linear_rows(t, yy, yp, rr, ud):
+    """``F = L [y; y'; u(t); 1]`` into ``rr``; returns ``(fdata, buf offset, left)`` for the friction rows."""
     ih = carray(_i64p(ud[0]), (11,))
     idata = carray(_i64p(ud[0]), (ih[10],))
     fh = carray(_f64p(ud[1]), (7,))
@@ -127,6 +167,101 @@ def residual(t, yy, yp, rr, user_data):
         for q in range(idata[indptr + row], idata[indptr + row + 1]):
             acc += fdata[data + q] * fdata[buf + idata[indices + q]]
         r[i] = acc
+    return fdata, buf, left
+
+
+@cfunc(_RES_SIG, cache=True)
+def residual(t, yy, yp, rr, user_data):
+    ud = carray(_i64p(_address(user_data)), (6,))
+    if _past_deadline(ud):
+        return -1
+    _linear_rows(t, yy, yp, rr, ud)
+    return 0
+
+
+@njit(cache=True, inline="always")
+def _friction_tables(ud):
+    hh = carray(_i64p(ud[2]), (14,))
+    hi = carray(_i64p(ud[2]), (hh[13],))
+    fh = carray(_f64p(ud[3]), (9,))
+    hf = carray(_f64p(ud[3]), (int(fh[8]),))
+    return hh, hi, fh, hf
+
+
+@njit(cache=True, inline="always")
+def _normal_force(hh, hi, fh, hf, j, t, left):
+    """``fn_scale_j * u_j(t)``: device j's normal force (its law: ``FrictionDevice.linear_law``)."""
+    par = int(fh[2]) + N_PAR * j
+    return hf[int(fh[3]) + j] * _signal(hi[hh[8] + j], hf[par: par + N_PAR], t, left)
+
+
+@cfunc(_RES_SIG, cache=True)
+def residual_friction(t, yy, yp, rr, user_data):
+    """The linear rows, then each friction row in the segment's mode (``compile.friction_rows``):
+    stuck ``G_f[j] a = 0``; sliding ``lam_j - mode k_j max(fn_j(t), 0) = 0``; free or held ``lam_j = 0``."""
+    ud = carray(_i64p(_address(user_data)), (6,))
+    if _past_deadline(ud):
+        return -1
+    fdata, buf, left = _linear_rows(t, yy, yp, rr, ud)
+    hh, hi, fh, hf = _friction_tables(ud)
+    ih = carray(_i64p(ud[0]), (1,))
+    r = carray(_f64p(_second_pointer(_address(rr))), (ih[0],))
+    for j in range(hh[0]):
+        m = hi[hh[9] + j]
+        if m == M_STUCK:
+            acc = 0.0
+            for q in range(hi[hh[2] + j], hi[hh[2] + j + 1]):
+                acc += hf[int(fh[0]) + q] * fdata[buf + hi[hh[3] + q]]
+        else:
+            acc = fdata[buf + hi[hh[6] + j]]
+            if m == M_FORWARD or m == M_BACKWARD:
+                fn = _normal_force(hh, hi, fh, hf, j, t, left)
+                if fn > 0.0:
+                    acc -= m * hf[int(fh[4]) + j] * fn
+        r[hi[hh[1] + j]] = acc
+    return 0
+
+
+_EV_SIG = types.int32(types.float64, types.voidptr, types.voidptr, types.CPointer(types.float64), types.voidptr)
+
+
+@cfunc(_EV_SIG, cache=True)
+def events(t, yy, yp, gout, user_data):
+    """The ``2 mf`` event functions of ``hybrid.events`` (``_event_values_small``) in the segment's modes:
+    per device its first function (sliding ``mode w_rel``, stuck ``tau0_max - |lam|``, else 1; a relief
+    event ``ms lam_holder + tol`` in its place) and its engagement (``fn`` engaged, ``-fn`` not)."""
+    ud = carray(_i64p(_address(user_data)), (6,))
+    ih = carray(_i64p(ud[0]), (11,))
+    fdata = carray(_f64p(ud[1]), (1,))
+    hh, hi, fh, hf = _friction_tables(ud)
+    N = ih[0]
+    y = carray(_f64p(_second_pointer(_address(yy))), (N,))
+    mf = hh[0]
+    g = carray(gout, (2 * mf,))
+    left = t >= fdata[0]
+    for j in range(mf):
+        fn = _normal_force(hh, hi, fh, hf, j, t, left)
+        kind = hi[hh[10] + j]
+        rel = hi[hh[12] + j]
+        if rel >= 0:
+            v = hf[int(fh[6]) + j] * y[rel] + hf[int(fh[7]) + j]
+        elif kind == EV_SLIDING:
+            w = 0.0
+            for q in range(hi[hh[4] + j], hi[hh[4] + j + 1]):
+                w += hf[int(fh[1]) + q] * y[hi[hh[5] + q]]
+            v = hi[hh[9] + j] * w
+            if v == 0.0:
+                v = 1e-300
+        elif kind == EV_STUCK:
+            tau0 = hf[int(fh[4]) + j] * fn if fn > 0.0 else 0.0
+            v = hf[int(fh[5]) + j] * tau0 - abs(y[hi[hh[7] + j]])
+        else:
+            v = 1.0
+        g[2 * j] = v
+        if hi[hh[11] + j]:
+            g[2 * j + 1] = fn
+        else:
+            g[2 * j + 1] = -fn if fn != 0.0 else 1e-300
     return 0
 
 
@@ -156,7 +291,8 @@ def jacobian_dense(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
 def drive(solve_fn, mem, tspan, tret, yy, yp, y_addr, yp_addr, perm, T, Y, YP):
     """IDASolve to each of ``tspan[1:]`` (normal mode), rows into T, Y, YP in the compiled system's order
     (solver entry i is unknown ``perm[i]``; row 0: the start, written by the caller); returns (rows written,
-    last flag). Stops after a flag < 0 (that row kept, as scikit-sundae does) or the stop time (flag 1)."""
+    last flag). Stops after a flag < 0 (that row kept, as scikit-sundae does), the stop time (flag 1) or a root
+    of the event functions (flag 2: every event is terminal; the row is the state at the root)."""
     N = Y.shape[1]
     ya = carray(_f64p(y_addr), (N,))
     ypa = carray(_f64p(yp_addr), (N,))
@@ -170,6 +306,6 @@ def drive(solve_fn, mem, tspan, tret, yy, yp, y_addr, yp_addr, perm, T, Y, YP):
             Y[k, perm[i]] = ya[i]
             YP[k, perm[i]] = ypa[i]
         k += 1
-        if flag < 0 or flag == 1:
+        if flag < 0 or flag == 1 or flag == 2:
             break
     return k, flag

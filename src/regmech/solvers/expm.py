@@ -176,7 +176,20 @@ def nonlinear_components(c, t_start: float, t_end: float, samples: int = 48) -> 
     not depend on the sliding speed (constant mu; a time-varying normal
     force is fine: it is a force input). Internal states (first-order
     devices) are reported too: the second-order form cannot hold them.
+
+    The answer depends on the compiled system and the arguments only (the samples are seeded): it is kept
+    on the compiled system (``solver="auto"`` asks at every call).
     """
+    kept = c.__dict__.setdefault("_nonlinear_components", {})
+    key = (float(t_start), float(t_end), int(samples))
+    if key not in kept:
+        if len(kept) > 16:
+            kept.clear()
+        kept[key] = _nonlinear_components(c, t_start, t_end, samples)
+    return list(kept[key])
+
+
+def _nonlinear_components(c, t_start: float, t_end: float, samples: int) -> list[str]:
     bad: list[str] = []
     rng = np.random.default_rng(20240611)
     times = np.concatenate([[t_start, t_end], rng.uniform(t_start, t_end, samples)])

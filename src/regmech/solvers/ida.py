@@ -9,8 +9,10 @@ are made consistent by the compiler (projection onto the constraints,
 accelerations and constraint forces from one sparse KKT solve), so IDA's own
 initial-condition search is not needed.
 
-``native=True`` runs linear models with no Python in IDA's loop (``ida_native``: the same SUNDIALS IDA
-through ctypes, numba-compiled residual, Jacobian and output loop); other models run as below.
+``native=True`` runs linear models, and friction models whose laws are linear in one signal, with no Python
+in IDA's loop (``ida_native``: the same SUNDIALS IDA through ctypes, numba-compiled residual, Jacobian, event
+functions and output loop; one solver per run, re-initialised at every segment, the mode logic in Python at
+the events); other models run as below.
 
 Linear solver: ``dense`` below ``dense_max`` unknowns (60), ``sparse``
 (SuperLU_MT) with the analytic Jacobian above; ``linsolver`` overrides.
@@ -56,7 +58,8 @@ IDA_OPTIONS = OptionSet(
     max_steps=Integer("most IDA steps in one output interval (default 50000)", 1),
     stiff_check=stiff_check_option(),
     native=Flag("run IDA with compiled callbacks and no Python in its loop where the model allows it "
-                "(linear models; needs numba: see regmech.solvers.ida_native; default False)"),
+                "(linear models and friction with laws linear in one signal; needs numba: see "
+                "regmech.solvers.ida_native; default False, solver='auto' sets it when numba is installed)"),
     **chatter_options(),
 )
 
@@ -147,9 +150,24 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
 
     if native:
         # an eligible model (``ida_native.eligible``, checked by the caller): no callbacks into Python
-        from .ida_native import NativeIDA
-        lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
-        return NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband)
+        from .ida_native import NATIVE_KEEP_MAX, NativeIDA
+        key = (float(rtol), linsolver, None if order.perm is None else order.perm.tobytes(), max_step, int(max_order),
+               int(max_steps))
+        kept = c.__dict__.setdefault("_native_solvers", {})
+        solver = kept.get(key)
+        if solver is None:
+            lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
+            solver = NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband,
+                               deadline)
+            if c.N <= NATIVE_KEEP_MAX:
+                # a small model's solver serves its next runs too (the accuracy contract's pairs, sweeps): set up
+                # once, re-initialised per segment like the segments of one run
+                if len(kept) >= 4:
+                    kept.pop(next(iter(kept)))
+                kept[key] = solver
+        else:
+            solver.start_run(deadline)
+        return solver
 
     if order.perm is None and not c.mf and "residual" not in c.__dict__:
         plan = c._plan
@@ -234,22 +252,47 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
 _PURE_SIGNALS = ("Constant", "Sine", "Step", "Ramp", "Pulse")
 
 
-def _start_values(model, c, t_start, modes):
-    """``c.initial_y(t_start, modes)`` (a projection and two acceleration solves), remembered on the compiled
-    system for the next run from the same start when every signal of the model is one of regmech's own
-    scalar-parameter signals (a user's callable may not give the same values twice)."""
+def _start_key(model, c, t_start, modes):
+    """What the start values of a run depend on besides the compiled system, or None when they cannot be
+    remembered: every signal of the model must be one of regmech's own scalar-parameter signals (a user's
+    callable may not give the same values twice)."""
     from .common import _signals
     key = [float(t_start), float(c._t_right), tuple(int(m) for m in modes)]
     for comp, pname, sig in _signals(model):
         if type(sig).__module__ != "regmech.signals" or type(sig).__name__ not in _PURE_SIGNALS:
-            return c.initial_y(t_start, modes)
+            return None
         key.append((comp.name, pname, type(sig).__name__, tuple(sorted(vars(sig).items()))))
+    return key
+
+
+def _start_values(model, c, t_start, modes):
+    """``c.initial_y(t_start, modes)`` (a projection and two acceleration solves), remembered on the compiled
+    system for the next run from the same start (``_start_key``)."""
+    key = _start_key(model, c, t_start, modes)
+    if key is None:
+        return c.initial_y(t_start, modes)
     hit = c.__dict__.get("_ida_start")
     if hit is not None and hit[0] == key:
         return hit[1].copy(), hit[2].copy()
     y, yp = c.initial_y(t_start, modes)
     c._ida_start = (key, y.copy(), yp.copy())
     return y, yp
+
+
+def _start_settle(model, c, fr, t_start, modes):
+    """``fr.settle(t_start, None, modes, initial=True)`` (start values and the first mode logic), remembered
+    like ``_start_values`` with the state the mode logic keeps (``ModeLogic.snapshot``)."""
+    key = _start_key(model, c, t_start, modes)
+    if key is None:
+        return fr.settle(t_start, None, modes, initial=True)[:3]
+    hit = c.__dict__.get("_ida_start_settle")
+    if hit is not None and hit[0] == key:
+        _, y, yp, new, snap = hit
+        fr.restore(snap)
+        return y.copy(), yp.copy(), new.copy()
+    y, yp, new, _ = fr.settle(t_start, None, modes, initial=True)
+    c._ida_start_settle = (key, y.copy(), yp.copy(), np.array(new), fr.snapshot())
+    return y, yp, new
 
 
 def _blame(c, y, yp):
@@ -335,7 +378,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     stats = Stats(solver="ida", compile_time=compile_time, steps=0)   # step attempts (see _make_solver)
     stats.extra["steps_are_attempts"] = True
     if fr:
-        y, yp, modes, _ = fr.settle(t_start, None, modes, initial=True)
+        y, yp, modes = _start_settle(model, c, fr, t_start, modes)
     else:
         y, yp = _start_values(model, c, t_start, modes)
     events: list[Event] = []
@@ -540,7 +583,18 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     with_events = bool(c.friction) and c.friction.n_events > 0
     rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
     atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol)
-    solver = _reusable(reuse, modes, atol_vec)
+    if native:
+        # one native solver serves every segment of the run: re-initialised (IDAReInit) with the segment's
+        # tolerances, modes and event functions (its event bookkeeping is ours, see ``ida_native``)
+        solver = reuse.get("native") if reuse is not None else None
+        if solver is None:
+            solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
+                                  max_steps, deadline, native)
+            if reuse is not None:
+                reuse["native"] = solver
+        solver.set_segment(modes, order.to_solver(atol_vec) if np.ndim(atol_vec) else atol_vec)
+    else:
+        solver = _reusable(reuse, modes, atol_vec)
     if solver is None:
         solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
                               max_steps, deadline, native)
@@ -562,7 +616,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     except (RuntimeError, ValueError, KeyError) as exc:
         raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "
                               f"involved: {_blame(c, y, yp)}") from exc
-    if reuse is not None and sol.status not in (0, 1):
+    if reuse is not None and sol.status not in (0, 1) and not native:
         reuse.clear()            # a mode event (its bookkeeping stays on the events function) or a failure
     stats.segments += 1
     stats.steps += solver.regmech_attempts[1]

@@ -1,4 +1,5 @@
-"""IDA without Python in the loop, for linear models: ``simulate(..., solver="ida", native=True)``.
+"""IDA without Python in the loop, for linear models and friction models linear in each mode:
+``simulate(..., solver="ida", native=True)``.
 
 scikit-sundae calls a Python function for every residual evaluation: about 6 us of wrapper and solver
 overhead per call plus the residual itself, and about 3 us per output point. On small models that is
@@ -8,13 +9,19 @@ the residual, the Jacobian and the output loop compiled by numba (``_native_kern
 calls back into Python.
 
 It serves models whose residual is the linear ``F = L [y; y'; u(t); 1]`` of
-``compile.evaluation.EvaluationPlan``: no friction rows, no nonlinear device classes, time-varying
-offsets only through signal values (input slots), no Position/Speed references, signals of the types
-``Constant``, ``Sine``, ``Step`` and ``Ramp``, the dense or band linear solver, and no wall-clock limit
-(``timeout_s``: its checks need Python). ``eligible`` says why a model is not served; the IDA solver
-then runs its usual path. Same solver, options and tolerances as that path; the residual is summed in
-another order, so the answers differ by round-off, which IDA's step control turns into differences of
-the order of the tolerance.
+``compile.evaluation.EvaluationPlan`` (no nonlinear device classes, time-varying offsets only through signal
+values (input slots), no Position/Speed references, signals of the types ``Constant``, ``Sine``, ``Step`` and
+``Ramp``, the dense or band linear solver) plus friction rows whose devices state their law in closed form
+(``FrictionDevice.linear_law``: normal force ``fn = s u(t)``, kinetic torque ``k max(fn, 0)`` at every
+speed, static ``peak`` times that; no lossy gears or one-way clutches). In a segment's modes a friction row
+is ``G_f a = 0`` (stuck), ``lam - mode k max(fn, 0)`` (sliding) or ``lam`` (free, held), and the event
+functions are those of ``hybrid.events``, all evaluated by the kernels; IDA's root finding stops the segment
+at a crossing (every event terminal, downward), and the mode logic (``hybrid``) settles the modes in Python
+before ``NativeIDA.set_segment`` writes the next segment's tables and IDA is re-initialised. ``eligible``
+says why a model is not served; the IDA solver then runs its usual path. A run's wall-clock limit
+(``timeout_s``) is read by the residual kernels (``clock_gettime``). Same solver, options and tolerances as
+that path; the residual is summed in another order, so the answers differ by round-off, which IDA's step
+control turns into differences of the order of the tolerance.
 
 Cost: numba itself (an optional dependency, ``pip install regmech[native]``) takes a fresh process
 about half a second to import and to load its cached kernels; the first run on a machine also compiles
@@ -36,6 +43,10 @@ from ..errors import SimulationError
 _SUPPORTED = ("Constant", "Sine", "Step", "Ramp")
 
 _LIB = None            # the loaded libraries and kernels, or the reason they are not available
+
+#: a compiled system of at most this many unknowns keeps its native solvers for its next runs
+#: (``ida._make_solver``; a few per system, by options: memory of the order of N^2 for the dense matrix)
+NATIVE_KEEP_MAX = 400
 
 
 class _Libraries:
@@ -65,6 +76,7 @@ class _Libraries:
         # sunindextype is a C int in scikit-sundae's build (its c_config.pxi); checked below with the vectors
         self.ctx_create = sig(core.SUNContext_Create, i32, i32, ctypes.POINTER(vp))
         self.ctx_free = sig(core.SUNContext_Free, i32, ctypes.POINTER(vp))
+        self.ctx_quiet = sig(core.SUNContext_ClearErrHandlers, i32, vp)
         self.nv_new = sig(nvec.N_VNew_Serial, vp, idx, vp)
         self.nv_ptr = sig(nvec.N_VGetArrayPointer, vp, vp)
         self.nv_length = sig(nvec.N_VGetLength_Serial, idx, vp)
@@ -90,6 +102,11 @@ class _Libraries:
         self.set_real = {n: sig(getattr(ida, n), i32, vp, d) for n in
                          ("IDASetInitStep", "IDASetMinStep", "IDASetMaxStep", "IDASetStopTime")}
         self.clear_stop = sig(ida.IDAClearStopTime, i32, vp)
+        self.root_init = sig(ida.IDARootInit, i32, vp, i32, vp)
+        self.root_direction = sig(ida.IDASetRootDirection, i32, vp, vp)
+        self.root_info = sig(ida.IDAGetRootInfo, i32, vp, vp)
+        # the residual kernels read the monotonic clock for a run's wall-clock limit (``_native_kernels``)
+        self.clock_address = ctypes.cast(ctypes.CDLL(None).clock_gettime, vp).value
         self.n_res = sig(ida.IDAGetNumResEvals, i32, vp, ctypes.POINTER(lng))
         self.n_jac = sig(ida.IDAGetNumJacEvals, i32, vp, ctypes.POINTER(lng))
         self.n_steps = sig(ida.IDAGetNumSteps, i32, vp, ctypes.POINTER(lng))
@@ -133,41 +150,68 @@ def libraries():
     return _LIB
 
 
+def _signal_entry(s):
+    """(kind, parameters) of a signal the kernels evaluate, or None."""
+    from . import _native_kernels as K
+    name = type(s).__name__
+    if name not in _SUPPORTED or type(s).__module__ != "regmech.signals":
+        return None
+    p = np.zeros(K.N_PAR)
+    if name == "Sine":
+        p[:5] = s.offset, s.amplitude, s.freq_hz, s.phase, s.start_time
+        return K.SINE, p
+    if name == "Step":
+        p[:3] = s.offset, s.height, s.start_time
+        return K.STEP, p
+    if name == "Ramp":
+        p[:4] = s.offset, s.height, s.duration, s.start_time
+        return K.RAMP, p
+    p[0] = s.value_
+    return K.CONSTANT, p
+
+
 def signal_table(plan):
     """(kinds, slots, parameters) of every signal the residual reads, or a string naming one it cannot."""
-    from . import _native_kernels as K
     kinds, slots, pars = [], [], []
     for g, start, _, _ in plan.input_slots:
         for j, sigs in enumerate(g.signals):
             for i, s in enumerate(sigs):
-                name = type(s).__name__
-                if name not in _SUPPORTED or type(s).__module__ != "regmech.signals":
-                    return (f"{type(g.devices[i]).__name__} '{g.devices[i].name}' has a {name} signal "
+                entry = _signal_entry(s)
+                if entry is None:
+                    return (f"{type(g.devices[i]).__name__} '{g.devices[i].name}' has a {type(s).__name__} signal "
                             f"(the native path evaluates {', '.join(_SUPPORTED)})")
-                p = np.zeros(K.N_PAR)
-                if name == "Sine":
-                    kinds.append(K.SINE)
-                    p[:5] = s.offset, s.amplitude, s.freq_hz, s.phase, s.start_time
-                elif name == "Step":
-                    kinds.append(K.STEP)
-                    p[:3] = s.offset, s.height, s.start_time
-                elif name == "Ramp":
-                    kinds.append(K.RAMP)
-                    p[:4] = s.offset, s.height, s.duration, s.start_time
-                else:
-                    kinds.append(K.CONSTANT)
-                    p[0] = s.value_
+                kinds.append(entry[0])
                 slots.append(start + j * g.n + i)
-                pars.append(p)
+                pars.append(entry[1])
     return (np.array(kinds, np.int64), np.array(slots, np.int64),
             np.concatenate(pars) if pars else np.zeros(0))
+
+
+def friction_laws(fr):
+    """Per friction device ``(kind, parameters, fn_scale, k, peak)`` of its closed-form law
+    (``FrictionDevice.linear_law``), or a string naming the first device the kernels cannot evaluate."""
+    laws = []
+    for j, dev in enumerate(fr.devices):
+        what = f"{type(dev).__name__} '{dev.name}'"
+        if dev.coupled or dev.one_way:
+            return f"{what} (lossy gears and one-way clutches run their mode logic in Python)"
+        law = dev.linear_law()
+        if law is None:
+            return f"{what} has a speed-dependent or user-defined friction law"
+        sig, fn_scale, k, peak = law
+        entry = _signal_entry(sig)
+        if entry is None:
+            return (f"{what} has a {type(sig).__name__} normal force (the native path evaluates "
+                    f"{', '.join(_SUPPORTED)})")
+        if not all(np.isfinite(x) for x in (fn_scale, k, peak)):
+            return f"{what} has non-finite friction parameters"
+        laws.append((entry[0], entry[1], float(fn_scale), float(k), float(peak)))
+    return laws
 
 
 def eligible(c, linsolver, deadline=None):
     """None when the native path can run compiled system ``c`` with ``linsolver``, else the reason."""
     plan = c._plan
-    if c.mf:
-        return "the model has friction or loss elements (their mode logic runs in Python)"
     if plan.nonlinear:
         return f"nonlinear device classes ({', '.join(sorted({g.tpl.cls.__name__ for g in plan.nonlinear}))})"
     if plan.offset_slots:
@@ -176,15 +220,19 @@ def eligible(c, linsolver, deadline=None):
         return "Position/Speed sources (their references)"
     if linsolver not in ("dense", "band"):
         return f"linear solver '{linsolver}' (the native path has dense and band)"
-    if deadline is not None:
-        return "a wall-clock limit (timeout_s) is active; its checks run in Python"
     if "residual" in c.__dict__:
         return "the residual is wrapped on the compiled system (a work budget counts its calls in Python)"
     lib = libraries()            # numba first: the signal table needs the kernels' constants
     if isinstance(lib, str):
         return lib
     table = signal_table(plan)
-    return table if isinstance(table, str) else None
+    if isinstance(table, str):
+        return table
+    if c.mf:
+        laws = friction_laws(c.friction)
+        if isinstance(laws, str):
+            return laws
+    return None
 
 
 class _Result:
@@ -257,6 +305,87 @@ def _layout(c, linsolver, order):
     return idata, fdata
 
 
+class FrictionTables:
+    """The kernels' friction data ``(hi, hf)`` (``_native_kernels`` module docstring) of compiled system ``c``
+    in the solver's ordering ``order``, with ``set_segment`` writing the parts that belong to one segment."""
+
+    def __init__(self, c, order, laws):
+        from . import _native_kernels as K
+        fr = c.friction
+        N, mf = c.N, fr.mf
+        self.K, self.c, self.mf = K, c, mf
+        inv = np.arange(N) if order.perm is None else np.asarray(order.inv, np.int64)
+        G = fr.G.tocsr()
+        G.sum_duplicates()
+        sptr, sidx, scoef, wptr, widx, wcoef = [0], [], [], [0], [], []
+        for j in range(mf):
+            cols = G.indices[G.indptr[j]:G.indptr[j + 1]]
+            vals = G.data[G.indptr[j]:G.indptr[j + 1]]
+            for k, g in zip(cols, vals):
+                # the stuck row reads the acceleration a_k: y' of the speed, or y of its dummy derivative
+                sidx.append(int(c.iad[c.pos_in_Dv[k]]) if c.is_dummy_v[k] else N + int(c.iv[k]))
+                scoef.append(float(g))
+                widx.append(int(inv[c.iv[k]]))
+                wcoef.append(float(g))
+            sptr.append(len(sidx))
+            wptr.append(len(widx))
+        lam = np.asarray(c.ilam[fr.offset:fr.offset + mf], np.int64)
+        self.lam_compiled = lam
+        parts_i = [inv[c.r_fric], sptr, sidx, wptr, widx, lam, inv[lam], [law[0] for law in laws],
+                   np.zeros(mf), np.zeros(mf), np.zeros(mf), np.full(mf, -1)]
+        offs, pos = [], 14
+        for a in parts_i:
+            offs.append(pos)
+            pos += len(a)
+        self.hi = np.concatenate([np.array([mf] + offs + [pos], np.int64)] +
+                                 [np.asarray(a, np.int64) for a in parts_i])
+        self._mode, self._evkind, self._engaged, self._relief = (slice(offs[k], offs[k] + mf) for k in (8, 9, 10, 11))
+        parts_f = [scoef, wcoef, np.concatenate([law[1] for law in laws]), [law[2] for law in laws],
+                   [law[3] for law in laws], [law[4] for law in laws], np.zeros(mf), np.zeros(mf)]
+        offs, pos = [], 9
+        for a in parts_f:
+            offs.append(pos)
+            pos += len(a)
+        self.hf = np.concatenate([np.array(offs + [pos], float)] + [np.asarray(a, float) for a in parts_f])
+        self._ms, self._tol = slice(offs[6], offs[6] + mf), slice(offs[7], offs[7] + mf)
+        self._inv = inv
+
+    def set_segment(self, modes, engaged, relief):
+        """Write the segment's modes, event kinds, engagement and relief events (``hybrid.events``); plain
+        Python on the few devices of a model (numpy's per-call overhead would be most of it)."""
+        K, hi, hf = self.K, self.hi, self.hf
+        m0, e0, g0, r0 = self._mode.start, self._evkind.start, self._engaged.start, self._relief.start
+        s0, t0 = self._ms.start, self._tol.start
+        for j in range(self.mf):
+            m = int(modes[j])
+            hi[m0 + j] = m
+            hi[e0 + j] = K.EV_STUCK if m == 0 else K.EV_SLIDING if m in (1, -1) else K.EV_CONSTANT
+            hi[g0 + j] = 1 if engaged[j] else 0
+            hi[r0 + j] = -1
+            hf[s0 + j] = 0.0
+            hf[t0 + j] = 0.0
+        for j, il, sign, tol in relief:
+            hi[r0 + j] = self._inv[il]
+            hf[s0 + j] = float(modes[j]) * sign
+            hf[t0 + j] = tol
+
+
+def friction_jacobian(c, modes):
+    """``(jc, jcj)``: the constant and the ``cj`` part of the dense Jacobian entries in ``modes`` (a model whose
+    friction laws are ``linear_law``s: the Jacobian depends on the modes only), cached per mode set."""
+    cache = c.__dict__.setdefault("_native_friction_jac", {})
+    key = np.asarray(modes, np.int64).tobytes()
+    hit = cache.get(key)
+    if hit is None:
+        z = np.zeros(c.N)
+        j0 = np.array(c.jacobian_data(0.0, z, z, 0.0, modes), float)
+        j1 = np.array(c.jacobian_data(0.0, z, z, 1.0, modes), float) - j0
+        if len(cache) > 256:
+            cache.clear()
+        hit = cache[key] = (j0, j1)
+    return hit
+
+
 class NativeIDA:
     """A drop-in for ``sksundae.ida.IDA`` on an eligible model (``eligible``): ``solve(tspan, y0, yp0)``, whose
     output rows come back in the compiled system's order (``_Result.unpermuted``).
@@ -266,7 +395,8 @@ class NativeIDA:
     ``solve`` initialises IDA, later ones re-initialise it (``IDAReInit``), as scikit-sundae does.
     """
 
-    def __init__(self, c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband=0, uband=0):
+    def __init__(self, c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband=0, uband=0,
+                 deadline=None):
         lib = libraries()
         K = lib.K
         self.lib, self.K, self.c = lib, K, c
@@ -277,11 +407,32 @@ class NativeIDA:
         if layout is None:
             layout = c._native_layouts[key] = _layout(c, linsolver, order)
         self.idata, self.fdata = layout[0].copy(), layout[1].copy()      # the kernels write into fdata
-        self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data], np.int64)
+        self.friction = None
+        # the wall-clock limit (deadline in ns of time.monotonic, 0: none), the flag the residual sets past it, and
+        # clock_gettime's scratch
+        self.ctl = np.zeros(4, np.int64)
+        self.deadline = deadline
+        if deadline is not None:
+            self.ctl[0] = max(1, int(deadline.at * 1e9))
+        hi_ptr = hf_ptr = 0
+        if c.mf:
+            self.friction = FrictionTables(c, order, friction_laws(c.friction))
+            hi_ptr, hf_ptr = self.friction.hi.ctypes.data, self.friction.hf.ctypes.data
+        self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data, hi_ptr, hf_ptr, self.ctl.ctypes.data,
+                              lib.clock_address], np.int64)
+        if c.mf:
+            self._rootdir = np.full(2 * c.mf, -1, np.int32)
+            self.rootsfound = np.zeros(2 * c.mf, np.int32)
+            if linsolver == "dense":
+                hdr = self.fdata[:7]
+                self._jc = slice(int(hdr[4]), int(hdr[5]))
+                self._jcj = slice(int(hdr[5]), int(hdr[6]))
         ctx = ctypes.c_void_p()
         if lib.ctx_create(0, ctypes.byref(ctx)) != 0:
             raise SimulationError(f"the native IDA path could not create a SUNDIALS context for model "
                                   f"'{c.model.name}'; run it without native=True")
+        # no printing to stderr: a failure comes back as IDA's flag and is reported as a SimulationError
+        lib.ctx_quiet(ctx)
         yy, yp, at, idv = (lib.nv_new(N, ctx) for _ in range(4))
         if linsolver == "dense":
             A = lib.dense(N, N, ctx)
@@ -313,13 +464,39 @@ class NativeIDA:
         # steps taken in the last solve, as the usual path's counter (``ida._make_solver``) reports them:
         # here IDA's own count of accepted steps (IDAReInit sets it back to zero)
         self.regmech_attempts = [None, 0]
+        self._counts = None
+        self._atol = np.ctypeslib.as_array(ctypes.cast(lib.nv_ptr(at), ctypes.POINTER(ctypes.c_double)), (N,))
+
+    def start_run(self, deadline):
+        """Serve another run of the same compiled system (kept by ``ida._make_solver``): its wall-clock limit."""
+        self.deadline = deadline
+        self.ctl[:] = 0
+        if deadline is not None:
+            self.ctl[0] = max(1, int(deadline.at * 1e9))
+        self.regmech_attempts[1] = 0
+
+    def set_segment(self, modes, atol):
+        """Prepare the next ``solve`` for a segment in ``modes`` with absolute tolerances ``atol`` (solver order):
+        the friction rows' modes and event functions (from the friction set's state after ``settle``) and the
+        Jacobian's constants of the mode set."""
+        self._atol[:] = atol
+        self._new_tolerances = True
+        if self.friction is None:
+            return
+        fr = self.c.friction
+        self.friction.set_segment(modes, fr.engaged, fr._relief)
+        if self._opts[1] == "dense":
+            jc, jcj = friction_jacobian(self.c, modes)
+            self.fdata[self._jc] = jc
+            self.fdata[self._jcj] = jcj
 
     def _setup(self, t0):
         lib, K = self.lib, self.K
         rtol, linsolver, A, LS, max_step, max_order, max_steps = self._opts
         mem = self.mem
+        res = K.residual if self.friction is None else K.residual_friction
         flags = [lib.set_user_data(mem, self.user.ctypes.data),
-                 lib.init(mem, K.residual.address, t0, self.yy, self.yp),
+                 lib.init(mem, res.address, t0, self.yy, self.yp),
                  lib.tolerances(mem, rtol, self._at),
                  lib.set_ls(mem, LS, A)]
         if linsolver == "dense":
@@ -329,6 +506,10 @@ class NativeIDA:
                   lib.set_real["IDASetMinStep"](mem, 0.0),
                   lib.set_real["IDASetMaxStep"](mem, float(max_step) if max_step else 0.0),
                   lib.set_int["IDASetMaxOrd"](mem, max_order), lib.set_max_steps(mem, max_steps)]
+        if self.friction is not None:
+            # every event terminal, each crossing downwards (``hybrid.events``), as the usual path asks of IDA
+            flags += [lib.root_init(mem, 2 * self.c.mf, K.events.address),
+                      lib.root_direction(mem, self._rootdir.ctypes.data)]
         if any(f < 0 for f in flags):
             raise RuntimeError(f"setting up the native IDA solver failed (flags {flags})")
         self._initialised = True
@@ -341,8 +522,12 @@ class NativeIDA:
         lib = self.lib
         if not self._initialised:
             self._setup(float(tspan[0]))
-        elif lib.reinit(self.mem, float(tspan[0]), self.yy, self.yp) < 0:
-            raise RuntimeError("IDAReInit failed")
+        else:
+            if lib.reinit(self.mem, float(tspan[0]), self.yy, self.yp) < 0:
+                raise RuntimeError("IDAReInit failed")
+            if getattr(self, "_new_tolerances", False) and lib.tolerances(self.mem, self._opts[0], self._at) < 0:
+                raise RuntimeError("IDASVtolerances failed")
+        self._new_tolerances = False
         if lib.set_real["IDASetStopTime"](self.mem, float(tspan[-1])) < 0:
             raise RuntimeError("IDASetStopTime failed")
         n = len(tspan)
@@ -354,10 +539,21 @@ class NativeIDA:
         rows, flag = self.K.drive(self.lib.solve_address, self.mem, tspan, self.tret, self.yy, self.yp,
                                   self.ya_address, self.ypa_address, self.perm, T, Y, YP)
         lib.clear_stop(self.mem)
-        nf, nj = ctypes.c_long(), ctypes.c_long()
-        lib.n_res(self.mem, ctypes.byref(nf))
-        lib.n_jac(self.mem, ctypes.byref(nj))
-        ns = ctypes.c_long()
-        lib.n_steps(self.mem, ctypes.byref(ns))
-        self.regmech_attempts[1] += int(ns.value)
-        return _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf.value), int(nj.value), unpermuted=True)
+        if self.ctl[1]:
+            # the residual stopped IDA at the run's wall-clock limit
+            raise self.deadline.error(float(T[rows - 1]))
+        counts = self._counts
+        if counts is None:
+            counts = self._counts = [(ctypes.c_long(), f) for f in (lib.n_res, lib.n_jac, lib.n_steps)]
+        for cell, f in counts:
+            f(self.mem, ctypes.byref(cell))
+        nf, nj, ns = (cell.value for cell, _ in counts)
+        self.regmech_attempts[1] += int(ns)
+        out = _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf), int(nj), unpermuted=True)
+        if flag == 2:            # a root: the last row is the state there (scikit-sundae's event arrays)
+            if lib.root_info(self.mem, self.rootsfound.ctypes.data) < 0:
+                raise RuntimeError("IDAGetRootInfo failed")
+            out.i_events = self.rootsfound.copy()[None, :]
+            out.t_events = T[rows - 1:rows].copy()
+            out.y_events, out.yp_events = Y[rows - 1:rows].copy(), YP[rows - 1:rows].copy()
+        return out
