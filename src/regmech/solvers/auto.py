@@ -63,6 +63,13 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
 4. otherwise ``ida`` (the fastest solver under the contract on every
    nonlinear case measured, stiff ones included).
 
+``K(a)`` was measured with ida's Python callbacks. When ida will run with
+compiled ones (``ida_native``: numba installed, the model within what it
+serves), its step is ``native_gain(states)`` times cheaper and ``K(a)`` is
+divided by that -- where the periods counted are all ida must resolve
+(``Traits.step_gain``: no oscillating mode above the output grid's Nyquist
+frequency, which ``periods(a)`` leaves out).
+
 When the first choice refuses (``AccuracyError`` or another
 ``SimulationError``), the next candidate runs: ``ida`` after ``expm``;
 ``expm`` (when a candidate) and then ``scipy:Radau`` after ``ida``. The result's ``stats.solver`` is the solver
@@ -108,6 +115,13 @@ ZETA_LIGHT = 0.02
 STIFF_SPREAD = 100.0
 #: options that set the tolerance or the step: the accuracy sets them under auto
 SETTINGS = ("rtol", "atol", "h", "tol")
+#: when ida will run natively (``ida_native``: compiled callbacks), its step costs ``native_gain(states)`` times
+#: less than the Python path's on which K(a) was measured: ``1 + NATIVE_GAIN / (1 + states / NATIVE_GAIN_STATES)``.
+#: Measured on the 5 Hz-driven chains (CPU time under the contract, accuracy 1e-3 and 1e-6, load ~11): 10 inertias
+#: (20 states) 4.2x and 5.2x, 100 inertias 1.8x and 1.9x, 1000 inertias 1.02x and 1.10x (the linear algebra, the
+#: same in both, dominates a large model's step)
+NATIVE_GAIN = 4.0
+NATIVE_GAIN_STATES = 60.0
 
 
 @dataclass
@@ -123,14 +137,30 @@ class Traits:
     friction: int
     f_bound: float = math.inf       # an upper bound of the frequencies that count [Hz]
     f_forcing: float = 0.0          # the fastest sinusoidal input [Hz]
+    ida_gain: float = 1.0           # how many times cheaper ida's step is than on the Python path (native)
+    f_nyquist: float = math.inf     # the output grid's Nyquist frequency [Hz]
+    _complete: bool = field(default=False, repr=False)
     _modes: object = field(default=False, repr=False)
 
     @property
     def modes(self):
         """The oscillating modes (computed on first use: the choice needs them only for some models)."""
         if self._modes is False:
-            self._modes = self.modes_of() if callable(self.modes_of) else self.modes_of
+            got = self.modes_of() if callable(self.modes_of) else self.modes_of
+            self._modes, self._complete = got if isinstance(got, tuple) else (got, False)
         return self._modes
+
+    def step_gain(self) -> float:
+        """``ida_gain`` where the periods counted are all there are (every oscillating mode below the output
+        grid's Nyquist frequency, or, without modal traits, the frequency bound below it); else 1. A mode above
+        it is left out of ``periods(a)`` (expm need not resolve it), yet ida resolves it while it is excited:
+        on a fixed-free undamped chain of 6 inertias over 100 slowest periods (dt_out 1 s, accuracy 1e-3),
+        native ida took 134,692 steps and 238 ms, expm 261 steps and 33 ms; the Python path's K(a) hid that."""
+        if self.ida_gain == 1.0:
+            return 1.0
+        if self.modes is not None:
+            return self.ida_gain if self._complete else 1.0
+        return self.ida_gain if self.f_bound < self.f_nyquist else 1.0
 
     def expm_steps_at(self, accuracy: float) -> float:
         """``expm_steps(a)`` of the module docstring."""
@@ -185,8 +215,26 @@ def traits(model, t_start: float, t_end: float, dt_out: float) -> Traits:
         # the highest natural frequency is below about twice the fastest link's local one (Gershgorin)
         f_bound = min(f_nyquist, 2.0 * link[1] / (2 * math.pi))
     steps = len(output_grid(t_start, t_end, dt_out)) - 1 + len(signal_breakpoints(model, t_start, t_end))
-    return Traits(linear, bad, floor, spread, modes_of, t_end - t_start, steps, int(c.ode_size()), int(c.mf),
-                  f_bound=f_bound, f_forcing=_forcing_frequency(model))
+    states = int(c.ode_size())
+    return Traits(linear, bad, floor, spread, modes_of, t_end - t_start, steps, states, int(c.mf),
+                  f_bound=f_bound, f_forcing=_forcing_frequency(model),
+                  ida_gain=native_gain(states) if _runs_native(c) else 1.0, f_nyquist=f_nyquist)
+
+
+def native_gain(states: int) -> float:
+    """How many times cheaper a native ida step is than a Python-path one (``NATIVE_GAIN``)."""
+    return 1.0 + NATIVE_GAIN / (1.0 + states / NATIVE_GAIN_STATES)
+
+
+def _runs_native(c) -> bool:
+    """Whether ida under auto will run with compiled callbacks (``_native_default``): numba and SUNDIALS'
+    libraries there and the model within what the native path serves."""
+    from .ida import choose_linsolver
+    from .ida_native import eligible
+    try:
+        return eligible(c, choose_linsolver(c)[0]) is None
+    except Exception:       # noqa: BLE001 - a model the check cannot judge simply runs as if not native
+        return False
 
 
 def _forcing_frequency(model) -> float:
@@ -201,8 +249,9 @@ def _forcing_frequency(model) -> float:
 
 
 def _modes(c, t_start, f_max):
-    """(damping ratio, frequency [Hz]) of the oscillating modes of a linear model at its start, up to ``f_max``;
-    None when the model is too large or the linear form cannot be had."""
+    """``(modes, complete)``: (damping ratio, frequency [Hz]) of the oscillating modes of a linear model at its
+    start up to ``f_max``, and whether that is all of them; None when the model is too large or the linear form
+    cannot be had."""
     from ..compile.linear import linearize
     try:
         lin = linearize(c, t=t_start)
@@ -228,25 +277,26 @@ def _modes(c, t_start, f_max):
     zeta = np.maximum(0.0, -osc.real / np.abs(osc))       # an undamped root's real part is round-off of either sign
     f = osc.imag / (2 * math.pi)
     keep = f <= f_max
-    return np.column_stack([zeta[keep], f[keep]])
+    return np.column_stack([zeta[keep], f[keep]]), bool(np.all(keep))
 
 
-def steps_per_period(accuracy: float) -> float:
-    """``K(a)``: expm's output steps per period a stepping method must resolve, at which the two cost alike."""
-    return EXPM_STEPS_PER_PERIOD + EXPM_STEPS_PER_DECADE * math.log10(1.0 / accuracy)
+def steps_per_period(accuracy: float, ida_gain: float = 1.0) -> float:
+    """``K(a)``: expm's output steps per period a stepping method must resolve, at which the two cost alike
+    (divided by ``ida_gain`` when ida's steps are that much cheaper: the native path)."""
+    return (EXPM_STEPS_PER_PERIOD + EXPM_STEPS_PER_DECADE * math.log10(1.0 / accuracy)) / ida_gain
 
 
 def large_model_bound(tr: Traits, accuracy: float) -> float:
     """Rule 3's bound of expm's steps for a model without modal traits: ``K(a) * span * f_bound *
     max(1, states / EXPM_STATES_REF)``."""
-    return steps_per_period(accuracy) * tr.periods_bound() * max(1.0, tr.states / EXPM_STATES_REF)
+    return steps_per_period(accuracy, tr.step_gain()) * tr.periods_bound() * max(1.0, tr.states / EXPM_STATES_REF)
 
 
 def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     """Candidates ``[(solver, reason), ...]`` in order (module docstring, rules 1-3)."""
     out = []
     expm_ok = tr.linear and tr.floor <= FLOOR_MARGIN * accuracy
-    k = steps_per_period(accuracy)
+    k = steps_per_period(accuracy, tr.step_gain() if expm_ok else 1.0)
     # the modes only where they can decide (their eigenvalues cost about as much as a short run)
     steps = tr.expm_steps_at(accuracy)
     periods = tr.periods(accuracy) if expm_ok and steps <= k * tr.periods_bound() else 0.0
@@ -275,7 +325,9 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
         why += f" (round-off bound {tr.floor:.2g} too close to the accuracy for expm)"
     if tr.spread >= STIFF_SPREAD:
         why += f", stiff (link spread {tr.spread:.3g})"
-    out.append(("ida", f"{why}: variable-order BDF with events located by root finding"))
+    native = (f"; its compiled callbacks make a step about {tr.ida_gain:.2g}x cheaper" if tr.ida_gain > 1.0
+              else "")
+    out.append(("ida", f"{why}: variable-order BDF with events located by root finding{native}"))
     if out[0][0] == "ida":
         if expm_ok:
             out.append(("expm", "linear, after ida refused: the exact flow"))
