@@ -808,25 +808,21 @@ def spectral_bound(J, c) -> float:
             return float(np.max(p * s_ + q + r / s_))
         scale = math.sqrt(max(r.max(), 1e-300) / max(p.max(), 1e-300))
         # the search runs on the few rows that can be the largest near the optimum (the largest p, q, r and
-        # sums); the bound is then the norm over every row at the s found (valid for any s)
+        # sums); the bound is then the norm over every row at the s found (valid for any s, so the search
+        # needs no more precision than the bound is worth: 1 % of s at the end)
         keys = (p, q, r, p * scale + q + r / scale)
         keep = np.unique(np.concatenate([np.argpartition(-k, min(32, len(k) - 1))[:33] for k in keys]))
         pk, qk, rk = p[keep], q[keep], r[keep]
-        # max of convex functions of s: unimodal in log s; golden-section search on a wide bracket
-        lo, hi = math.log(scale) - 30.0, math.log(scale) + 30.0
-        g = (math.sqrt(5.0) - 1.0) / 2.0
-        a, b = hi - g * (hi - lo), lo + g * (hi - lo)
-        fa, fb = norm(a, pk, qk, rk), norm(b, pk, qk, rk)
-        for _ in range(60):
-            if fa <= fb:
-                hi, b, fb = b, a, fa
-                a = hi - g * (hi - lo)
-                fa = norm(a, pk, qk, rk)
-            else:
-                lo, a, fa = a, b, fb
-                b = lo + g * (hi - lo)
-                fb = norm(b, pk, qk, rk)
-        best = min(best, norm(a if fa <= fb else b, p, q, r), norm(math.log(scale), p, q, r))
+        # max of convex functions of s: unimodal in log s; a coarse grid over a wide bracket, then a fine one
+        # around its best point, each in one array operation (a golden-section search of 120 scalar
+        # evaluations cost 1-2 ms, 5-8 % of a 100-inertia chain's DOP853 run)
+        centre = math.log(scale)
+        for half, count in ((30.0, 121), (0.5, 101)):
+            log_s = centre + np.linspace(-half, half, count)
+            s_ = np.exp(log_s)
+            vals = np.max(pk[:, None] * s_[None, :] + qk[:, None] + rk[:, None] / s_[None, :], axis=0)
+            centre = float(log_s[int(np.argmin(vals))])
+        best = min(best, norm(centre, p, q, r), norm(math.log(scale), p, q, r))
     return float(best)
 
 
