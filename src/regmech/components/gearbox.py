@@ -268,6 +268,10 @@ class DualClutchTransmission(Subsystem):
        ``K_B`` slips until the engine has come down to the new gear's speed, and locks);
     3. ``sync<i>`` opens over ``sync_time`` after the handover.
 
+    A synchroniser slips at ``sync_capacity * f`` while it synchronises and, once locked, holds up to
+    ``sync_hold * f`` (the dog teeth: a static torque far above its slipping torque, ``peak`` of its
+    ``Clutch`` = ``sync_hold / sync_capacity``).
+
     Two successive gears on the same shaft (e.g. 1 -> 3) are refused: a DCT shifts between shafts
     (skip-shifts go through the other shaft). Parts: ``drum``, ``K1``, ``K2``, ``shaft1``, ``shaft2``,
     ``gear<k>``, ``idler<k>``, ``sync<k>``, ``output``. ``capacity`` is the kinetic torque of each
@@ -278,6 +282,8 @@ class DualClutchTransmission(Subsystem):
     gear = Param(1, check="any", unit="1", doc="gear selection: int, list of (t, gear) or a piecewise-constant signal")
     capacity = Param(check="positive", unit="N m", doc="kinetic torque of K1 and K2 fully applied")
     sync_capacity = Param(200.0, check="positive", unit="N m", doc="kinetic torque of a synchroniser")
+    sync_hold = Param(1e4, check="positive", unit="N m",
+                      doc="static torque of an engaged synchroniser (its dog teeth), >= sync_capacity")
     peak = Param(1.2, check="positive", unit="1", doc="static over kinetic torque (>= 1)")
     J_in = Param(0.02, check="positive", unit="kg m^2", doc="clutch drum inertia")
     J_shaft = Param(0.01, check="positive", unit="kg m^2", doc="inner/outer input shaft inertia")
@@ -285,7 +291,8 @@ class DualClutchTransmission(Subsystem):
     J_out = Param(0.02, check="positive", unit="kg m^2", doc="output shaft inertia")
     sync_time = Param(0.1, check="positive", unit="s", doc="synchroniser ramp")
     handover_time = Param(0.3, check="positive", unit="s", doc="clutch-to-clutch crossover")
-    w_in0 = Param(None, optional=True, unit="rad/s", doc="start speed of the drum (fixed when given)")
+    w_in0 = Param(None, optional=True, unit="rad/s",
+                  doc="start speed of the drum and of the shaft of the first gear (fixed when given)")
     w_out0 = Param(None, optional=True, unit="rad/s", doc="start speed of the output (fixed when given)")
     ports = {"flange_a": "drum.flange_a", "flange_b": "output.flange_b"}
 
@@ -298,6 +305,9 @@ class DualClutchTransmission(Subsystem):
         self._J_gear = per_gear(self, "J_gear", self._values["J_gear"], n, "positive")
         if self.peak < 1.0:
             raise ParameterError(f"{_where(self)}: parameter 'peak' must be >= 1, got {self.peak}")
+        if self.sync_hold < self.sync_capacity:
+            raise ParameterError(f"{_where(self)}: sync_hold = {self.sync_hold:g} N m is below sync_capacity = "
+                                 f"{self.sync_capacity:g} N m; an engaged synchroniser holds at least what it slips at")
         sched = gear_schedule(self, self._values["gear"], n)
         if sched[0][1] == 0 or any(g == 0 for _, g in sched):
             raise ParameterError(f"{_where(self)}: a DCT has no neutral in its schedule here; open a clutch upstream")
@@ -341,8 +351,11 @@ class DualClutchTransmission(Subsystem):
         drum = self.part(Inertia("drum", J=self.J_in, w0=self.w_in0))
         out = self.part(Inertia("output", J=self.J_out, w0=self.w_out0))
         shafts = {}
+        g0 = self._schedule[0][1]
         for s in (1, 2):
-            shaft = shafts[s] = self.part(Inertia(f"shaft{s}", J=self.J_shaft))
+            # the loaded shaft starts with the drum (its clutch is closed); the idle one at rest unless told
+            w0 = self.w_in0 if s == self.shaft_of(g0) else None
+            shaft = shafts[s] = self.part(Inertia(f"shaft{s}", J=self.J_shaft, w0=w0))
             k = self.part(Clutch(f"K{s}", mu=1.0, cgeo=1.0, peak=self.peak, fn_max=self.capacity,
                                  f_normalized=self._k_tables[s]))
             self.link(drum.flange_b, k.flange_a)
@@ -351,7 +364,8 @@ class DualClutchTransmission(Subsystem):
             i = k + 1
             mesh = self.part(IdealGear(f"gear{i}", ratio=r))
             idler = self.part(Inertia(f"idler{i}", J=self._J_gear[k]))
-            sync = self.part(Clutch(f"sync{i}", mu=1.0, cgeo=1.0, peak=self.peak, fn_max=self.sync_capacity,
+            sync = self.part(Clutch(f"sync{i}", mu=1.0, cgeo=1.0, peak=self.sync_hold / self.sync_capacity,
+                                    fn_max=self.sync_capacity,
                                     f_normalized=self._s_tables[k]))
             self.link(shafts[self.shaft_of(i)].flange_b, mesh.flange_a)
             self.link(mesh.flange_b, idler.flange_a)
