@@ -9,6 +9,13 @@ from .inertial import Fixed, Inertia, Mass
 from .powertrain import Engine, RoadLoad
 from .wheel import MagicFormulaTyre, MagicFormulaWheel, Rolling, Wheel
 from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
+from .gearbox import DualClutchTransmission, Gearbox
+from .converter import ConverterFluid, TorqueConverter
+from .stops import ElastoGap, EndStop, MassWithStopAndFriction
+from .laws import Stribeck
+from .loads import (InverseSpeedDependentForce, InverseSpeedDependentTorque, LinearBrake, LinearSpeedDependentForce,
+                    LinearSpeedDependentTorque, QuadraticSpeedDependentForce, QuadraticSpeedDependentTorque, SignForce,
+                    SignTorque, VehicleLoad)
 
 __all__ = [
     "Fixed", "Inertia", "Mass",
@@ -19,4 +26,8 @@ __all__ = [
     "Clutch", "OneWayClutch", "LossyGear", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
     "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
+    "Gearbox", "DualClutchTransmission", "TorqueConverter", "ConverterFluid",
+    "EndStop", "ElastoGap", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad",
+    "LinearSpeedDependentTorque", "QuadraticSpeedDependentTorque", "SignTorque", "InverseSpeedDependentTorque",
+    "LinearSpeedDependentForce", "QuadraticSpeedDependentForce", "SignForce", "InverseSpeedDependentForce",
 ]
