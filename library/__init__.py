@@ -9,6 +9,7 @@ from .msl import coupled_clutches, first, one_way_clutch
 from .vehicle import vehicle_launch
 from .excavator import excavator_swing
 from .gearshift import gear_shift
+from .drivetrains import dct_car, six_speed_car
 
 SCENES = {
     "first": first,
@@ -21,6 +22,8 @@ SCENES["chain_drive"] = chain_drive
 SCENES["vehicle_launch"] = vehicle_launch
 SCENES["excavator_swing"] = excavator_swing
 SCENES["gear_shift"] = gear_shift
+SCENES["six_speed_car"] = six_speed_car
+SCENES["dct_car"] = dct_car
 
 __all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch", "vehicle_launch",
-           "excavator_swing", "gear_shift"]
+           "excavator_swing", "gear_shift", "six_speed_car", "dct_car"]

@@ -268,6 +268,10 @@ class DualClutchTransmission(Subsystem):
        ``K_B`` slips until the engine has come down to the new gear's speed, and locks);
     3. ``sync<i>`` opens over ``sync_time`` after the handover.
 
+    ``launch_time``: the clutch of the first gear closes from open over that time from the start
+    (a launch from rest: it slips while the engine pulls the car away, then locks); without it the
+    box starts with that clutch closed.
+
     A synchroniser slips at ``sync_capacity * f`` while it synchronises and, once locked, holds up to
     ``sync_hold * f`` (the dog teeth: a static torque far above its slipping torque, ``peak`` of its
     ``Clutch`` = ``sync_hold / sync_capacity``).
@@ -291,8 +295,10 @@ class DualClutchTransmission(Subsystem):
     J_out = Param(0.02, check="positive", unit="kg m^2", doc="output shaft inertia")
     sync_time = Param(0.1, check="positive", unit="s", doc="synchroniser ramp")
     handover_time = Param(0.3, check="positive", unit="s", doc="clutch-to-clutch crossover")
+    launch_time = Param(None, check="positive", optional=True, unit="s",
+                        doc="launch: the clutch of the first gear closes over this time from t = 0 (None: closed)")
     w_in0 = Param(None, optional=True, unit="rad/s",
-                  doc="start speed of the drum and of the shaft of the first gear (fixed when given)")
+                  doc="start speed of the drum and (without launch) of the shaft of the first gear (fixed when given)")
     w_out0 = Param(None, optional=True, unit="rad/s", doc="start speed of the output (fixed when given)")
     ports = {"flange_a": "drum.flange_a", "flange_b": "output.flange_b"}
 
@@ -319,9 +325,13 @@ class DualClutchTransmission(Subsystem):
         t0 = sched[0][0]
         for s in (1, 2):
             k_pts[s].append((t0, 1.0 if self.shaft_of(g0) == s else 0.0))
+        done = -math.inf
+        if self.launch_time is not None:
+            # a launch from rest: the clutch of the first gear closes from open (it slips, then locks)
+            k_pts[self.shaft_of(g0)] = [(t0, 0.0), (t0 + self.launch_time, 1.0)]
+            done = t0 + self.launch_time
         for k in range(n):
             s_pts[k].append((t0, 1.0 if k + 1 == g0 else 0.0))
-        done = -math.inf
         for (_, g_old), (t_s, g_new) in zip(sched, sched[1:]):
             a, b = self.shaft_of(g_old), self.shaft_of(g_new)
             if a == b:
@@ -354,7 +364,7 @@ class DualClutchTransmission(Subsystem):
         g0 = self._schedule[0][1]
         for s in (1, 2):
             # the loaded shaft starts with the drum (its clutch is closed); the idle one at rest unless told
-            w0 = self.w_in0 if s == self.shaft_of(g0) else None
+            w0 = self.w_in0 if s == self.shaft_of(g0) and self.launch_time is None else None
             shaft = shafts[s] = self.part(Inertia(f"shaft{s}", J=self.J_shaft, w0=w0))
             k = self.part(Clutch(f"K{s}", mu=1.0, cgeo=1.0, peak=self.peak, fn_max=self.capacity,
                                  f_normalized=self._k_tables[s]))
