@@ -173,3 +173,18 @@ def test_fluid_classes_shared_per_table_and_picklable():
     assert isinstance(c, ConverterFluid)
     d = pickle.loads(pickle.dumps(c))
     assert type(d) is type(c) and np.array_equal(d.K_table, c.K_table)
+
+
+@pytest.mark.parametrize("w_p, w_t", [(100.0, -100.0 * (1 - 1e-7)), (100.0, -100.0 * (1 + 1e-7))])
+def test_counter_rotation_is_continuous_and_dissipative(w_p, w_t):
+    """Turbine backwards (nu < 0): TR goes from TR(0) to 1 at nu = -1, where the overrun law takes over
+    (|w_t| = |w_p|): both torques continuous there (a fuzz model crossed it with the old held TR(0), a
+    jump of the turbine torque by TR(0) - 1, and IDA failed)."""
+    tau_p, tau_t, power = _two_speeds(w_p, w_t)
+    expect = w_p ** 2 * c_of(0.0)
+    assert tau_p == pytest.approx(expect, rel=1e-5)
+    assert tau_t == pytest.approx(expect, rel=1e-5)       # TR = 1 on both sides of nu = -1
+    assert power > 0
+    mid = _two_speeds(100.0, -50.0)
+    tr = TR[0, 1] + (TR[0, 1] - 1.0) * (-0.5)
+    assert mid[1] == pytest.approx(tr * mid[0], rel=1e-9)

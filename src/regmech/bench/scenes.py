@@ -139,6 +139,16 @@ def all_scenes() -> list[BenchScene]:
             signals=("input.w", "ring.w", "output.w", "vehicle.w", "output_shaft.tau"), stick_slip=True,
             title="planetary 1-2 upshift: brake released, clutch applied",
             steps=(1e-3, 5e-4, 2.5e-4)),
+        BenchScene(
+            key="six_speed_car", scene="six_speed_car", params=(), t_end=4.0, dt_out=5e-3,
+            signals=("flywheel.w", "converter.turbine.w", "gearbox.output.w", "body.v", "propshaft.tau"),
+            stick_slip=True, title="6-speed automatic: launch through the torque converter, 1-2 shift",
+            steps=(5e-3, 2.5e-3, 1.25e-3)),
+        BenchScene(
+            key="dct_car", scene="dct_car", params=(), t_end=3.5, dt_out=5e-3,
+            signals=("flywheel.w", "dct.shaft1.w", "dct.shaft2.w", "body.v", "propshaft.tau"),
+            stick_slip=True, title="dual-clutch car: launch on K1, pre-selected 1-2 handover",
+            steps=(5e-3, 2.5e-3, 1.25e-3)),
         _train(10),
         _train(100),
         _train(1000),

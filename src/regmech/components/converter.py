@@ -18,8 +18,10 @@ freewheels and the converter works as a coupling (torque ratio 1)::
 
 ``c`` is interpolated linearly between the table points (``K`` given at speed ratios in
 [0, 1)) and falls linearly to zero at ``nu = 1`` (pump and turbine at one speed transmit no
-torque), so the law is continuous where traction meets overrun; below the first point both
-tables are held (a turbine turning backwards, e.g. a car rolling back at idle, is deep stall).
+torque), so the law is continuous where traction meets overrun. A turbine turning backwards
+(``nu < 0``, a car rolling back at idle) is deep stall: ``c`` is held at ``c(0)`` and the torque
+ratio goes linearly from ``TR(0)`` to 1 at ``nu = -1``, where traction meets overrun a second
+time (``w_t = -w_p``), so the law is continuous in every quadrant.
 The speed ratio is regularised as ``nu = w_t w_p / (w_p^2 + w_eps^2)`` so that it is defined
 at standstill (zero torque there); ``w_eps`` (1e-3 rad/s) changes nothing at running speeds.
 
@@ -27,9 +29,8 @@ Power: the fluid absorbs ``tau_p w_p - tau_t w_t = tau_p w_p (1 - TR(nu) nu) >= 
 (the efficiency ``TR nu`` must not exceed 1, which the tables are checked for) and
 ``tau_t (w_t - w_p) >= 0`` in overrun: it only dissipates (heat in the oil).
 
-Validity: the law is odd (all speeds reversed give all torques reversed). Where the turbine
-turns backwards as fast as the pump forwards (``w_t = -w_p``) the turbine torque jumps from
-``TR(0) tau_p`` to ``tau_p``; no driving manoeuvre reaches it.
+The law is odd (all speeds reversed give all torques reversed). Counter-rotation dissipates
+too: ``1 - TR nu > 0`` for ``nu < 0``.
 """
 
 from __future__ import annotations
@@ -111,8 +112,11 @@ class ConverterFluid(Device):
         if sub is None:
             c = np.vstack([np.column_stack([k[:, 0], 1.0 / k[:, 1] ** 2]), [[1.0, 0.0]]]) \
                 if np.all(k[:, 1] > 0) and k[-1, 0] < 1.0 else None
+            # counter-rotation (turbine backwards, nu < 0): TR goes linearly from TR(0) to 1 at nu = -1, where
+            # traction meets overrun again (|w_t| = |w_p|), so the turbine torque is continuous there too
+            trp = np.vstack([[[-1.0, 1.0]], tr]) if len(tr) and tr[0, 0] == 0.0 else tr.copy()
             sub = type(public.__name__, (public,), {
-                "_c_points": c, "_tr_points": tr.copy(), "_public": public, "__module__": public.__module__,
+                "_c_points": c, "_tr_points": trp, "_public": public, "__module__": public.__module__,
                 "__qualname__": public.__qualname__, "__doc__": public.__doc__})
             ConverterFluid._classes[key] = sub
         return sub
