@@ -196,7 +196,20 @@ class Brake(Clutch):
 
 class FrictionContact(_MuMixin, FrictionDevice):
     """Translational Coulomb contact between ``flange_a`` and ``flange_b`` (a Fixed
-    for a contact with the ground): ``f = mu(|v_rel|) * fn(t)``, static ``peak`` times that."""
+    for a contact with the ground): ``f = mu(|v_rel|) * fn(t)``, static ``peak`` times that.
+
+    Sign convention (as every two-flange device): ``v_rel = v_b - v_a`` and ``f = flange_b.f``,
+    so the mode names the sign of ``v_rel``, not of the mass's own velocity: which side the
+    ground is on flips Forward and Backward. A block ``M`` sliding towards +s at 2 m/s::
+
+        m.connect(M.flange_b, contact.flange_a); m.connect(contact.flange_b, wall.flange)
+            -> v_rel = 0 - 2 = -2 m/s: mode Backward (-1), f = -mu fn (flange_b.f; the block
+               receives -mu fn on its flange, i.e. a force against its motion)
+        m.connect(wall.flange, contact.flange_a); m.connect(contact.flange_b, M.flange_a)
+            -> v_rel = 2 - 0 = +2 m/s: mode Forward (+1), f = +mu fn
+
+    The force on the block opposes its motion in both wirings; only the signs of ``mode``,
+    ``v_rel`` and ``f`` read differently."""
 
     mu = Param(0.5, check="nonnegative", unit="1", doc="kinetic friction coefficient (ignored with mu_table)")
     mu_table = Param(None, check="table", optional=True, unit="(m/s, 1)", doc="(v_rel [m/s], mu) points for v_rel >= 0")
