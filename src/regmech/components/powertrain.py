@@ -47,23 +47,25 @@ def _as_points(value):
 
 
 class _MapParam(Param):
-    """The torque map: setting it moves the instance to the class of the new map."""
+    """A map of the engine (full load, drag): setting it moves the instance to the class of the new maps."""
 
     def __set__(self, obj, value):
         points = self.validate(obj, value)
-        obj.__class__ = type(obj)._public._class_for(points)
+        maps = {"torque_map": obj._values.get("torque_map"), "drag_map": obj._values.get("drag_map")}
+        maps[self.name] = points
+        obj.__class__ = type(obj)._public._class_for(maps["torque_map"], maps["drag_map"])
         super().__set__(obj, points)
 
 
-def _engine_shell(public_cls, points):
-    """Unpickling helper: an empty instance of the class of ``points``."""
-    return object.__new__(public_cls._class_for(points))
+def _engine_shell(public_cls, points, drag=None):
+    """Unpickling helper: an empty instance of the class of ``points`` (and ``drag``)."""
+    return object.__new__(public_cls._class_for(points, drag))
 
 
 class Engine(Device):
     """Combustion engine as a torque source with a full-load map::
 
-        tau = throttle(t) * T_full(w),   w = w_flange - w_support  [rad/s]
+        tau = throttle(t) * T_full(w) + (1 - throttle(t)) * T_drag(w),   w = w_flange - w_support  [rad/s]
 
     ``torque_map``: rows ``(w_k [rad/s], T_k [N m])`` with strictly increasing
     speeds, interpolated linearly and held at the end values outside the
@@ -75,8 +77,12 @@ class Engine(Device):
     ``Torque``: ``flange.tau = -tau``. Exports ``tau``; the engine speed is
     the speed of the inertia on its flange.
 
-    Drag (motoring) torque at closed throttle is not modelled; add a
-    ``Damper`` to the ground for it.
+    ``drag_map`` (optional): the drag (motoring) torque at closed throttle, rows ``(w_k, T_k)``
+    with ``T_k <= 0`` [N m] (pumping and friction losses, e.g. ``[(80, -12), (600, -40)]``), blended
+    by ``1 - throttle``: at throttle 0 the engine brakes the car with ``T_drag``, at throttle 1 it
+    gives the full-load torque. Without it ``T_drag = 0`` (add a ``Damper`` to the ground for a
+    simple drag proportional to speed). Its power then flows into the engine (a negative work of
+    the source), so the energy books count it with the source.
 
     How the map reaches the class kernel: laws are written once per *class*
     with parameters as symbols, and a table is not a scalar parameter. So each
@@ -91,11 +97,14 @@ class Engine(Device):
     is_source = True
     torque_map = _MapParam(check="table", unit="(rad/s, N m)", doc="full-load torque vs speed")
     throttle = Param(1.0, check="signal", unit="1", doc="fraction of full load (0..1)")
+    drag_map = _MapParam(None, check="table", optional=True, unit="(rad/s, N m)",
+                         doc="drag (motoring) torque <= 0 at closed throttle vs speed")
     flanges = (("flange", ROTATIONAL), ("support", ROTATIONAL, True))
     rel_names = {ROTATIONAL: (None, None, None, "tau")}
 
     #: on the per-map subclasses: the map (n, 2) and the public class they derive from
     _points: ClassVar[np.ndarray | None] = None
+    _drag: ClassVar[np.ndarray | None] = None
     _public: ClassVar[type | None] = None
     _map_classes: ClassVar[dict] = {}
 
@@ -103,36 +112,47 @@ class Engine(Device):
         public = cls._public or cls
         refuse_positional(public, (name, *args))
         points = _as_points(params.get("torque_map"))
-        if points is None:
+        drag = params.get("drag_map")
+        drag_points = None if drag is None else _as_points(drag)
+        if points is None or (drag is not None and drag_points is None):
             return object.__new__(public)      # __init__ reports the malformed map
-        return object.__new__(public._class_for(points))
+        return object.__new__(public._class_for(points, drag_points))
 
     @classmethod
-    def _class_for(cls, points: np.ndarray) -> type:
+    def _class_for(cls, points: np.ndarray, drag: np.ndarray | None = None) -> type:
         public = cls._public or cls
-        key = (public, points.shape, points.tobytes())
+        key = (public, points.shape, points.tobytes()) + (() if drag is None else (drag.shape, drag.tobytes()))
         sub = Engine._map_classes.get(key)
         if sub is None:
             sub = type(public.__name__, (public,), {
-                "_points": points.copy(), "_public": public, "__module__": public.__module__,
+                "_points": points.copy(), "_drag": None if drag is None else np.array(drag, dtype=float),
+                "_public": public, "__module__": public.__module__,
                 "__qualname__": public.__qualname__, "__doc__": public.__doc__})
             Engine._map_classes[key] = sub
         return sub
 
     def __reduce_ex__(self, protocol):
-        return _engine_shell, (type(self)._public or type(self), self.torque_map), self.__dict__
+        return _engine_shell, (type(self)._public or type(self), self.torque_map, self.drag_map), self.__dict__
 
     def validate(self):
-        if type(self)._points is None or not np.array_equal(type(self)._points, self.torque_map):
+        drag, own = self._values.get("drag_map"), type(self)._drag
+        if type(self)._points is None or not np.array_equal(type(self)._points, self.torque_map) or \
+                (drag is None) != (own is None) or (drag is not None and not np.array_equal(own, drag)):
             raise ParameterError(f"Engine '{self.name}': internal map class mismatch; create the Engine with "
                                  f"Engine(name, torque_map=..., throttle=...)")
+        if drag is not None and np.any(drag[:, 1] > 0):
+            raise ParameterError(f"Engine '{self.name}': drag_map torques must be <= 0 [N m] (the drag opposes the "
+                                 f"rotation; the full-load torque belongs in torque_map), got {drag[:, 1].max():g}")
 
     def rows(self):
         # e = phi_support - phi_flange: flange.tau = -tau, power absorbed = -tau * w
         return [{"support": 1.0, "flange": -1.0}]
 
     def law(self, rel, rel_dot):
-        return self.throttle * piecewise_linear(-rel_dot, self._points)
+        full = self.throttle * piecewise_linear(-rel_dot, self._points)
+        if self._drag is None:
+            return full
+        return full + (1 - self.throttle) * piecewise_linear(-rel_dot, self._drag)
 
 
 class RoadLoad(Device):
