@@ -502,6 +502,13 @@ class Device(Component):
         """Stored energy as a function of the device coordinates (0 if none)."""
         return 0
 
+    def start_relative(self) -> list[tuple[int, int, float]]:
+        """Fixed start values of the device's own coordinates: ``(row, level, value)`` with level 0 the
+        coordinate (``phi_rel``), 1 its rate (``w_rel``). Initialisation meets them exactly, as it
+        meets a mass's ``phi0``/``w0`` (none by default; ``TwoFlangeCompliant`` takes
+        ``phi_rel_start``/``w_rel_start``)."""
+        return []
+
 
 class Subsystem(Component):
     """A reusable assembly of components with exposed flanges (a Modelica sub-model).

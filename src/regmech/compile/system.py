@@ -322,17 +322,55 @@ class CompiledSystem:
         sol = self._kkt(modes, relations).solve(rhs)
         return sol[: self.n], sol[self.n:], dz
 
-    def project(self, t, x_guess, v_guess, fixed_x=None, fixed_v=None, modes=None):
+    def _device_starts(self):
+        """Start values fixed on device coordinates (``Device.start_relative``) as constraint rows:
+        ``([Row], G, g)`` per level (0 positions, 1 velocities), made once."""
+        cached = self.__dict__.get("_dev_starts")
+        if cached is not None:
+            return cached
+        st = self.structure
+        picked = ([], []), ([], [])
+        for name, rows in st.rows.items():
+            if not rows:
+                continue
+            for r, level, value in rows[0].device.start_relative():
+                row = rows[r]
+                picked[level][0].append(row)
+                # e = coefs . x + offset (ground positions); rates of the ground are zero
+                picked[level][1].append(value - (row.offset if level == 0 else 0.0))
+        out = []
+        for rows, vals in picked:
+            out.append((rows, st.matrix(rows), np.array(vals, float)))
+        self._dev_starts = out
+        return out
+
+    def project(self, t, x_guess, v_guess, fixed_x=None, fixed_v=None, modes=None, device_starts=False):
         """Closest consistent (x, v) to the guesses: position and velocity
         constraints hold exactly; entries of ``fixed_*`` (non-NaN) are kept.
         Corrections are mass-weighted (an impulse for velocities).
 
         Fixed values that the constraints (rigid devices, gears, motion sources
         at ``t``, stuck friction rows) cannot meet raise ``StructureError``
-        naming the masses and devices of each conflicting group."""
+        naming the masses and devices of each conflicting group.
+
+        ``device_starts``: also meet the start values fixed on device coordinates
+        (``_device_starts``; the initial values of a run)."""
         gp, gv = self._refs(t)
-        x = self._project_level(self.Gp, gp[0] - self.e0p, x_guess, fixed_x, 0, t,
-                                lambda: self._constraint_labels(0, gp, gv, ()))
+        dev = self._device_starts() if device_starts else (([], None, np.zeros(0)), ([], None, np.zeros(0)))
+
+        def labels(level, stuck):
+            rows, refs = self._constraint_labels(level, gp, gv, stuck)
+            extra, _, vals = dev[level]
+            name = ("phi_rel_start", "w_rel_start")[level]
+            refs = dict(refs)
+            for k, row in enumerate(extra):
+                refs[len(rows) + k] = f"{name}={row.device._values.get(name):.10g}"
+            return list(rows) + list(extra), refs
+
+        G0, g0 = self.Gp, gp[0] - self.e0p
+        if len(dev[0][0]):
+            G0, g0 = sp.vstack([G0, dev[0][1]]).tocsr(), np.concatenate([g0, dev[0][2]])
+        x = self._project_level(G0, g0, x_guess, fixed_x, 0, t, lambda: labels(0, ()))
         G = [self.Gpv]
         rhs = [np.concatenate([gp[1], gv[0]])]
         stuck = ()
@@ -340,8 +378,11 @@ class CompiledSystem:
             stuck = np.nonzero(np.asarray(modes) == 0)[0]
             G.append(self.Gf[stuck])
             rhs.append(np.zeros(len(stuck)))
+        if len(dev[1][0]):
+            G.append(dev[1][1])
+            rhs.append(dev[1][2])
         v = self._project_level(sp.vstack(G).tocsr(), np.concatenate(rhs), v_guess, fixed_v, 1, t,
-                                lambda: self._constraint_labels(1, gp, gv, stuck))
+                                lambda: labels(1, stuck))
         return x, v
 
     def _constraint_labels(self, level, gp, gv, stuck):
@@ -436,7 +477,7 @@ class CompiledSystem:
         modes = self.modes0 if modes is None else modes
         guess_x = np.where(np.isfinite(st.start_pos), st.start_pos, 0.0)
         guess_v = np.where(np.isfinite(st.start_vel), st.start_vel, 0.0)
-        x, v = self.project(t0, guess_x, guess_v, st.start_pos, st.start_vel, modes)
+        x, v = self.project(t0, guess_x, guess_v, st.start_pos, st.start_vel, modes, device_starts=True)
         z = self.state_start.copy()
         return self.assemble_y(t0, x, v, z, modes)
 

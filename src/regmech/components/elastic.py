@@ -12,10 +12,29 @@ from ..component import Device, Param
 
 
 class TwoFlangeCompliant(Device):
-    """Base of compliant two-flange devices (MSL PartialCompliant)."""
+    """Base of compliant two-flange devices (MSL PartialCompliant).
+
+    ``phi_rel_start`` [rad] and ``w_rel_start`` [rad/s] (m, m/s when translational) fix the
+    start values of ``phi_rel = phi_b - phi_a`` and ``w_rel`` (MSL's ``phi_rel(start=..., fixed=true)``):
+    a pre-twisted shaft or a preloaded spring needs no hand conversion to the masses' start values.
+    Initialisation meets them exactly with the least mass-weighted change of the free start values;
+    start values that contradict them (on the masses, rigid devices, motion sources) are a
+    ``StructureError`` naming the device. Not to be confused with ``phi_rel0``, the unstretched
+    length of a spring.
+    """
 
     kind = "compliant"
     flanges = (("flange_a", None), ("flange_b", None))
+    phi_rel_start = Param(None, optional=True, unit="rad", doc="start value of phi_rel (fixed when given)")
+    w_rel_start = Param(None, optional=True, unit="rad/s", doc="start value of w_rel (fixed when given)")
+
+    def start_relative(self):
+        out = []
+        for level, pname in enumerate(("phi_rel_start", "w_rel_start")):
+            value = self._values.get(pname)
+            if value is not None:
+                out.append((0, level, float(value)))
+        return out
 
 
 class Spring(TwoFlangeCompliant):
