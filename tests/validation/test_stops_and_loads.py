@@ -292,3 +292,31 @@ def test_linear_brake_stops_a_mass_and_holds():
     assert not energy_checks(res, mod, rel=1e-8)
     with pytest.raises(ParameterError, match="LinearBrake 'b'.*cgeo"):
         LinearBrake("b", fn_max=1.0, cgeo=2.0)
+
+
+# ------------------------------------------------------------------ prescribed acceleration
+
+def test_accelerate_follows_the_integral_and_needs_the_inertia_torque():
+    from regmech.components import Accelerate, LinearAccelerate
+    J = 0.5
+    mod = rm.Model("acc")
+    src = mod.add(Accelerate("src", a_ref=Step(height=-4.0, start_time=0.5, offset=2.0), w0=1.0))
+    body = mod.add(Inertia("body", J=J))
+    mod.connect(src.flange, body.flange_a)
+    res = mod.simulate(1.0, dt_out=0.01, **TIGHT)
+    expect = np.where(res.t <= 0.5, 1.0 + 2.0 * res.t, 2.0 - 2.0 * (res.t - 0.5))
+    assert np.max(np.abs(res["body.w"] - expect)) < 1e-9
+    k = np.searchsorted(res.t, 0.25)
+    assert abs(res["src.tau"][k]) == pytest.approx(J * 2.0, rel=1e-9)
+    assert not energy_checks(res, mod, rel=1e-8)
+    lin = rm.Model("lin")
+    s2 = lin.add(LinearAccelerate("s2", a_ref=Sine(amplitude=2.0, freq_hz=1.0), v0=0.5))
+    M = lin.add(Mass("M", m=2.0))
+    lin.connect(s2.flange, M.flange_a)
+    r2 = lin.simulate(1.0, dt_out=0.01, **TIGHT)
+    assert np.max(np.abs(r2["M.v"] - (0.5 + 2.0 / (2 * np.pi) * (1 - np.cos(2 * np.pi * r2.t))))) < 1e-9
+    s2.v0 = 1.5                                  # the reference follows a changed start speed
+    r3 = lin.simulate(0.5, dt_out=0.25, **TIGHT)
+    assert r3["M.v"][0] == pytest.approx(1.5)
+    with pytest.raises(ParameterError, match="Accelerate 'x'.*a_ref"):
+        Accelerate("x")

@@ -13,6 +13,7 @@ from .gearbox import DualClutchTransmission, Gearbox
 from .converter import ConverterFluid, TorqueConverter
 from .stops import ElastoGap, EndStop, MassWithStopAndFriction
 from .laws import Stribeck
+from .accel import Accelerate, LinearAccelerate
 from .loads import (InverseSpeedDependentForce, InverseSpeedDependentTorque, LinearBrake, LinearSpeedDependentForce,
                     LinearSpeedDependentTorque, QuadraticSpeedDependentForce, QuadraticSpeedDependentTorque, SignForce,
                     SignTorque, VehicleLoad)
@@ -27,7 +28,7 @@ __all__ = [
     "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
     "Gearbox", "DualClutchTransmission", "TorqueConverter", "ConverterFluid",
-    "EndStop", "ElastoGap", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad",
+    "EndStop", "ElastoGap", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad", "Accelerate", "LinearAccelerate",
     "LinearSpeedDependentTorque", "QuadraticSpeedDependentTorque", "SignTorque", "InverseSpeedDependentTorque",
     "LinearSpeedDependentForce", "QuadraticSpeedDependentForce", "SignForce", "InverseSpeedDependentForce",
 ]
