@@ -11,7 +11,7 @@ from regmech.bench.fuzz import energy_checks
 from regmech.components import Clutch, Damper, Fixed, IdealGear, Inertia, Speed, Torque
 from regmech.components.gearbox import DualClutchTransmission, Gearbox
 from regmech.errors import ParameterError
-from regmech.signals import Step
+from regmech.signals import Pulse, Sine, Step
 
 RATIOS = [3.5, 2.1, 1.4, 1.0, 0.8, -3.2]
 
@@ -233,6 +233,8 @@ def test_neutral_transmits_nothing():
     (dict(ratios=[3.0, 2.0], capacity=1.0, gear=lambda t: 1), "callable"),
     (dict(ratios=[3.0, 2.0], capacity=1.0, gear=Step(height=0.5, start_time=1.0, offset=1)), "gear 1.5"),
     (dict(ratios=[3.0, 2.0], capacity=1.0, peak=0.9), "peak"),
+    (dict(ratios=[3.0, 2.0], capacity=1.0, gear=Pulse(amplitude=1, period=1.0, offset=1)), "switches without end"),
+    (dict(ratios=[3.0, 2.0], capacity=1.0, gear=Sine(amplitude=1, offset=1)), "varies"),
 ])
 def test_parameter_errors_name_the_box(kwargs, match):
     if match is None:

@@ -96,7 +96,12 @@ def gear_schedule(comp, gear, n: int) -> list[tuple[float, int]]:
         raise ParameterError(f"{where}: parameter 'gear' must be a gear number, a list of (t, gear) or a "
                              f"piecewise-constant signal, got {gear!r}")
     if isinstance(gear, Signal):
-        times = [t for t in gear.breakpoints(0.0, math.inf) if math.isfinite(t) and t > 0]
+        try:
+            times = [t for t in gear.breakpoints(0.0, math.inf) if math.isfinite(t) and t > 0]
+        except ParameterError:
+            raise ParameterError(f"{where}: the gear signal {gear!r} switches without end (its breakpoints need a "
+                                 f"finite time range); give the shifts as a list of (t, gear) pairs or a Table "
+                                 f"with repeated times") from None
         if len(times) > 10_000:
             raise ParameterError(f"{where}: the gear signal has {len(times)} breakpoints; give a schedule")
         edges = [0.0] + sorted(times)
