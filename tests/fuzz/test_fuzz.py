@@ -35,10 +35,8 @@ GROUPS = {
     "friction": ["clutch", "brake", "one_way_clutch", "bearing_friction", "friction_contact", "spring_damper"],
     "vehicle": ["wheel", "magic_formula_wheel", "road_load", "engine", "shaft_elastic", "clutch"],
     "rough": ["spring_damper", "shaft_rigid", "clutch", "differential"],
-    "driveline": ["end_stop", "elasto_gap", "speed_load", "stribeck_clutch", "linear_brake", "vehicle_load",
-                  "gearbox", "torque_converter", "spring_damper"],
 }
-EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "driveline": 8}
+EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4}
 
 
 def _check(rng, group, references="smooth", require=()):
@@ -84,12 +82,6 @@ def test_random_friction_drivetrains(rng):
 @given(rng=st.randoms(use_true_random=False))
 def test_random_vehicles(rng):
     _check(rng, "vehicle")
-
-
-@_settings("driveline")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_drivelines_with_stops_loads_and_transmissions(rng):
-    _check(rng, "driveline")
 
 
 @_settings("rough")
