@@ -10,6 +10,7 @@ from .vehicle import vehicle_launch
 from .excavator import excavator_swing
 from .gearshift import gear_shift
 from .electric import driver_cycle, electric_car
+from .drivetrains import dct_car, six_speed_car
 
 SCENES = {
     "first": first,
@@ -24,6 +25,8 @@ SCENES["excavator_swing"] = excavator_swing
 SCENES["gear_shift"] = gear_shift
 SCENES["electric_car"] = electric_car
 SCENES["driver_cycle"] = driver_cycle
+SCENES["six_speed_car"] = six_speed_car
+SCENES["dct_car"] = dct_car
 
 __all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch", "vehicle_launch",
-           "excavator_swing", "gear_shift", "electric_car", "driver_cycle"]
+           "excavator_swing", "gear_shift", "electric_car", "driver_cycle", "six_speed_car", "dct_car"]

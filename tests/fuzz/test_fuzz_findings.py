@@ -197,8 +197,8 @@ def test_dop853_contract_on_a_late_slip_reversal():
     reversal, where |w_rel| puts a kink in the steep friction table. The accuracy contract compares the pair's
     states and event times, which agree, and returned an estimate of 2.2e-7 for an error of 5.7e-4. Fixed by
     ``ode_driver._relocate``: the crossing is located again on steps that end at the located instant."""
-    from regmech.bench.fuzz import contract_error, generate_seed
-    spec = generate_seed(84)
+    from regmech.bench.fuzz import FAMILIES_BEFORE_17, contract_error, generate_seed
+    spec = generate_seed(84, families=FAMILIES_BEFORE_17)      # the model of seed 84 when it was found
     m = spec.build()
     ref = m.simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-10, atol=1e-12)
     res = m.simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", accuracy=1e-4)

@@ -24,7 +24,8 @@ ALL_SCENES = {**SCENES, "lossy_gear_demo": lossy_gear_demo}
 #: end times: long enough for the scenes' events (clutch engagements, gear shifts, stick/slip), short for CI
 T_END = {"first": 1.0, "coupled_clutches": 1.5, "one_way_clutch": 2.0, "vehicle_launch": 1.5,
          "excavator_swing": 1.0, "gear_shift": 1.0, "lossy_gear_demo": 0.5, "train": 0.5, "chain_drive": 0.05,
-         "electric_car": 0.5, "driver_cycle": 4.0}
+         "electric_car": 0.5, "driver_cycle": 4.0,
+         "six_speed_car": 3.2, "dct_car": 0.8}
 
 
 def _simulate(model, name):

@@ -97,11 +97,17 @@ FAMILIES = {
     "torque": 4, "force": 3, "speed": 2, "position": 2,
     # electric machines and closed-loop control (sources too: they feed work in)
     "dc_motor": 2, "electric_motor": 2, "pi_control": 2,
+    # drivetrain components of issue 17 (stops, loads, friction laws, transmissions)
+    "end_stop": 2, "elasto_gap": 1, "speed_load": 2, "stribeck_clutch": 2, "linear_brake": 1, "vehicle_load": 1,
+    "gearbox": 1, "torque_converter": 1,
 }
+#: the families before issue 17, in their order: ``generate(families=FAMILIES_BEFORE_17)`` draws the same
+#: models for the same seeds as before they were added (regression tests pinned to a seed use it)
+FAMILIES_BEFORE_17 = tuple(FAMILIES)[:26]
 #: signal types drawn for sources and normal forces ("callable": a lambda of t)
 SIGNALS = ("Constant", "Step", "Ramp", "Sine", "Table", "Pulse", "callable")
 #: families that need a translational mass to attach to
-TRANSLATIONAL_FAMILIES = {"friction_contact", "force", "road_load"}
+TRANSLATIONAL_FAMILIES = {"friction_contact", "force", "road_load", "linear_brake", "vehicle_load", "elasto_gap"}
 SOURCE_FAMILIES = {"torque", "force", "speed", "position", "engine", "dc_motor", "electric_motor", "pi_control"}
 
 
@@ -125,6 +131,7 @@ class ModelSpec:
 
     def source(self) -> str:
         head = ["import math", "import regmech as rm", "from regmech.components import *",
+                "from regmech.components.laws import Stribeck",
                 "from regmech.signals import *", "", f"m = rm.Model({self.name!r})"]
         return "\n".join(head + list(self.lines)) + "\n"
 
@@ -543,6 +550,114 @@ class _Gen:
         self.connect(f"{sh}.flange_a", self.flange(a))
         self.connect(f"{sh}.flange_b", hub.flange)
 
+    def stop_or_gap(self, family):
+        """An end stop of a mass against the ground or another mass, or an elastic gap between two."""
+        domain = "translational" if family == "elasto_gap" or self.chance(0.5) else "rotational"
+        a = self.anchor(domain)
+        others = [b for b in self.bodies if b.domain == domain and self.find(b.group) != self.find(a.group)]
+        b = self.pick(others) if others and self.chance(0.4) else None
+        c, omega, red = self.stiffness(a.mass, *(() if b is None else (b.mass,)))
+        c, omega = c * 100.0, omega * 10.0          # contacts are stiffer than the links
+        self.omega_max = max(self.omega_max, omega)
+        d = _fmt(self.damping(omega, red))
+        dom = {"domain": f"'{domain}'"}
+        if family == "end_stop":
+            lo = -self.dec(-3, 0)
+            var = self.add("stop", "EndStop", lower=_fmt(lo), upper=_fmt(lo + self.dec(-3, 0.3)), c=_fmt(c), d=d, **dom)
+            self.connect(f"{var}.flange", self.flange(a))
+            if b is not None:
+                self.connect(f"{var}.support", self.flange(b))
+            return
+        var = self.add("gap", "ElastoGap", c=_fmt(c), d=d, phi_rel0=_fmt(self.u(-1.0, 1.0) * self.dec(-3, 0)), **dom)
+        ends = [self.flange(a), self.ground(domain) if b is None else self.flange(b)]
+        if self.chance(0.5):
+            ends.reverse()
+        self.connect(f"{var}.flange_a", ends[0])
+        self.connect(f"{var}.flange_b", ends[1])
+
+    def speed_load(self):
+        """One of the speed-dependent loads (linear, quadratic, sign, inverse) on a mass, opposing motion."""
+        kind = self.pick(("Linear", "Quadratic", "Sign", "Inverse"))
+        if self.chance(0.6):
+            a = self.anchor("rotational")
+            cls = "SignTorque" if kind == "Sign" else f"{kind}SpeedDependentTorque"
+            kw = dict(tau_nominal=_fmt(self.tau_scale * self.dec(-1.5, 0)), w_nominal=_fmt(self.dec(-0.5, 1.5)))
+        else:
+            a = self.anchor("translational")
+            cls = "SignForce" if kind == "Sign" else f"{kind}SpeedDependentForce"
+            kw = dict(f_nominal=_fmt(self.f_scale * self.dec(-1.5, 0)), v_nominal=_fmt(self.dec(-0.5, 1.5)))
+        if kind in ("Sign", "Inverse"):
+            kw["w_eps"] = _fmt(self.dec(-2, -0.5))
+        var = self.add("load", cls, **kw)
+        self.connect(f"{var}.flange", self.flange(a))
+
+    def stribeck_friction(self, family):
+        """A clutch or brake with a Stribeck law, or a translational brake (``LinearBrake``)."""
+        mu_k = self.u(0.05, 0.6)
+        law = (f"Stribeck(mu_s={_fmt(mu_k * self.u(1.0, 1.8))}, mu_k={_fmt(mu_k)}, w_s={_fmt(self.dec(-1.5, 0.5))}, "
+               f"mu_v={_fmt(self.pick((0.0, self.dec(-4, -2))))}, delta={_fmt(self.pick((1.0, 2.0)))})")
+        if family == "linear_brake":
+            a = self.anchor("translational")
+            var = self.add("lbrake", "LinearBrake", mu_law=law, fn_max=_fmt(self.f_scale * self.dec(-1, 0.5) / mu_k),
+                           f_normalized=self.normalized())
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        a = self.anchor("rotational")
+        cgeo = self.dec(-1.5, 0)
+        kw = dict(mu_law=law, cgeo=_fmt(cgeo), fn_max=_fmt(self.tau_scale * self.dec(-1, 0.7) / (mu_k * cgeo)),
+                  f_normalized=self.normalized())
+        if self.chance(0.4):
+            var = self.add("sbrake", "Brake", **kw)
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        var = self.add("sclutch", "Clutch", **kw)
+        b = self.new_mass("rotational")
+        self.connect(f"{var}.flange_a", self.flange(a))
+        self.connect(f"{var}.flange_b", self.flange(b))
+
+    def vehicle_load(self):
+        body = self.anchor("translational")
+        grade = self.pick(("0.0", self.signal(-0.15, 0.15, kinds=("Constant", "Ramp", "Table", "Sine"))))
+        wind = self.pick(("0.0", self.signal(-5.0, 5.0, kinds=("Constant", "Step", "Sine", "callable"))))
+        var = self.add("vload", "VehicleLoad", m=_fmt(body.mass), c_r=_fmt(self.u(0.005, 0.03)),
+                       c_drag=_fmt(self.dec(-1.5, 0.3)), grade=grade, wind=wind, v_eps=_fmt(self.dec(-2, -0.5)))
+        self.connect(f"{var}.flange", self.flange(body))
+
+    def transmission(self, family):
+        """A Gearbox (2 to 4 gears, one shift inside the run) or a TorqueConverter between a mass and a new
+        one: both are subsystems whose inner masses the energy checks see."""
+        a = self.anchor("rotational")
+        if family == "gearbox":
+            n = self.rng.randint(2, 4)
+            ratios = [_fmt(self.pick((1, 1, 1, -1)) * self.dec(-0.3, 0.7)) for _ in range(n)]
+            g0, g1 = self.rng.randint(0, n), self.rng.randint(1, n)
+            T = self.t_end
+            ts = self.u(0.1, 0.4) * T
+            rel, eng = self.u(0.02, 0.15) * T, self.u(0.05, 0.3) * T
+            eff = self.pick(("None", "None", "[" + ", ".join(_fmt(self.u(0.9, 1.0)) for _ in range(n)) + "]"))
+            J_out = self.dec(-2.0, 0.0)
+            var = self.add("gbox", "Gearbox", ratios="[" + ", ".join(ratios) + "]",
+                           gear=f"[(0.0, {g0}), ({_fmt(ts)}, {g1 if g1 != g0 else (g0 % n) + 1})]",
+                           capacity=_fmt(self.tau_scale * self.dec(-0.3, 0.7)), efficiency=eff,
+                           J_in=_fmt(a.mass * self.dec(-1, 0)), J_out=_fmt(J_out), J_gear=_fmt(a.mass * self.dec(-2, -1)),
+                           release_time=_fmt(rel), engage_time=_fmt(eng), shift_delay=_fmt(rel * self.u(0.5, 1.5)))
+            out = self._body(None, f"{var}.flange_b", "rotational", float(_fmt(J_out)), None)
+        else:
+            k0 = self.dec(0.5, 1.5)
+            var = self.add("conv", "TorqueConverter",
+                           K_table=f"[(0.0, {_fmt(k0)}), (0.5, {_fmt(k0 * 1.1)}), (0.9, {_fmt(k0 * 1.6)})]",
+                           TR_table=f"[(0.0, {_fmt(self.u(1.5, 2.4))}), (0.85, 1.0), (1.0, 1.0)]",
+                           J_pump=_fmt(a.mass * self.dec(-1, 0)), J_turbine=_fmt(self.dec(-2, 0)),
+                           lockup=self.pick(("0.0", self.signal(0.0, 1.0, kinds=("Ramp", "Step", "Constant")))),
+                           lockup_capacity=_fmt(self.tau_scale * self.dec(-0.3, 0.7)))
+            out = self._body(None, f"{var}.turbine", "rotational", float(self.comps[var]["kw"]["J_turbine"]), None)
+        ends = ("flange_a", "flange_b") if family == "gearbox" else ("pump", "turbine")
+        self.connect(f"{var}.{ends[0]}", self.flange(a))
+        # the far side: a new mass joined to the box's output inertia (one rigid group)
+        b = self.new_mass("rotational")
+        self.connect(f"{var}.{ends[1]}", self.flange(b))
+        self.union(out, b)
+
     def road_load(self):
         body = self.anchor("translational")
         var = self.add("road", "RoadLoad", f_roll=_fmt(self.f_scale * self.dec(-2, -0.5)),
@@ -645,6 +760,16 @@ class _Gen:
             self.wheel(family)
         elif family == "road_load":
             self.road_load()
+        elif family in ("end_stop", "elasto_gap"):
+            self.stop_or_gap(family)
+        elif family == "speed_load":
+            self.speed_load()
+        elif family in ("stribeck_clutch", "linear_brake"):
+            self.stribeck_friction(family)
+        elif family == "vehicle_load":
+            self.vehicle_load()
+        elif family in ("gearbox", "torque_converter"):
+            self.transmission(family)
         else:
             self.source(family)
 
@@ -777,7 +902,7 @@ REFERENCE_RUNS = ("dop853_ref", "ida_ref")
 DEFAULT_MAX_CALLS = 600_000
 
 LOSS_CLASSES = ("Clutch", "Brake", "OneWayClutch", "BearingFriction", "FrictionContact", "LossyGear",
-                "LossyPlanetary", "Damper", "RoadLoad", "MagicFormulaTyre")
+                "LossyPlanetary", "Damper", "RoadLoad", "MagicFormulaTyre", "ConverterFluid", "_SpeedLoad")
 LOSSLESS_CLASSES = ("Spring", "IdealGear", "Planetary", "Differential", "Rolling", "Backlash")
 
 
@@ -1011,7 +1136,7 @@ def _loss_kind(dev):
         if dev.stiffness is None:
             return "lossless"
         return "storing-loss" if dev.damping > 0 else "lossless"
-    if cls in ("SpringDamper", "ElastoBacklash"):
+    if cls in ("SpringDamper", "ElastoBacklash", "EndStop", "ElastoGap"):
         return "storing-loss"
     if cls == "RoadLoad":
         return "storing-loss"      # the grade force stores height energy

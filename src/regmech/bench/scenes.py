@@ -149,6 +149,16 @@ def all_scenes() -> list[BenchScene]:
             signals=("rotor.w", "body.v", "half_shafts.tau", "driver.I"),
             title="driver following an ECE-15 hill (closed loop: PI pedal, regenerative and friction brake)",
             steps=(2e-3, 1e-3, 5e-4)),
+        BenchScene(
+            key="six_speed_car", scene="six_speed_car", params=(), t_end=4.0, dt_out=5e-3,
+            signals=("flywheel.w", "converter.turbine.w", "gearbox.output.w", "body.v", "propshaft.tau"),
+            stick_slip=True, title="6-speed automatic: launch through the torque converter, 1-2 shift",
+            steps=(5e-3, 2.5e-3, 1.25e-3)),
+        BenchScene(
+            key="dct_car", scene="dct_car", params=(), t_end=3.5, dt_out=5e-3,
+            signals=("flywheel.w", "dct.shaft1.w", "dct.shaft2.w", "body.v", "propshaft.tau"),
+            stick_slip=True, title="dual-clutch car: launch on K1, pre-selected 1-2 handover",
+            steps=(5e-3, 2.5e-3, 1.25e-3)),
         _train(10),
         _train(100),
         _train(1000),

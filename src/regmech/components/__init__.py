@@ -11,6 +11,14 @@ from .inertial import Fixed, Inertia, Mass
 from .powertrain import Engine, RoadLoad
 from .wheel import MagicFormulaTyre, MagicFormulaWheel, Rolling, Wheel
 from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
+from .gearbox import DualClutchTransmission, Gearbox
+from .converter import ConverterFluid, TorqueConverter
+from .stops import ElastoGap, EndStop, MassWithStopAndFriction
+from .laws import Stribeck
+from .accel import Accelerate, LinearAccelerate
+from .loads import (InverseSpeedDependentForce, InverseSpeedDependentTorque, LinearBrake, LinearSpeedDependentForce,
+                    LinearSpeedDependentTorque, QuadraticSpeedDependentForce, QuadraticSpeedDependentTorque, SignForce,
+                    SignTorque, VehicleLoad)
 
 __all__ = [
     "Fixed", "Inertia", "Mass",
@@ -22,4 +30,8 @@ __all__ = [
     "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
     "DCMotor", "SeriesDCMotors", "ElectricMotor", "Controller", "PI", "Driver",
+    "Gearbox", "DualClutchTransmission", "TorqueConverter", "ConverterFluid",
+    "EndStop", "ElastoGap", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad", "Accelerate", "LinearAccelerate",
+    "LinearSpeedDependentTorque", "QuadraticSpeedDependentTorque", "SignTorque", "InverseSpeedDependentTorque",
+    "LinearSpeedDependentForce", "QuadraticSpeedDependentForce", "SignForce", "InverseSpeedDependentForce",
 ]

@@ -96,9 +96,16 @@ class FrictionDevice(DissipatesPower, Device):
 
 
 class _MuMixin:
-    """mu(w) from a constant ``mu`` or a ``mu_table`` of (w, mu) points (w >= 0)."""
+    """mu(w) from a constant ``mu``, a ``mu_table`` of (w, mu) points (w >= 0) or a ``mu_law``
+    (``components.laws.Stribeck``: a closed-form law instead of a long table)."""
+
+    mu_law = Param(None, check="any", optional=True, unit="1",
+                   doc="friction law mu(|w_rel|), e.g. Stribeck(...); overrides mu and mu_table")
 
     def _mu(self, w_abs):
+        law = self._values.get("mu_law")
+        if law is not None:
+            return law.mu(w_abs)
         tab = self._values.get("mu_table")
         if tab is None:
             return self._values["mu"], 0.0
@@ -125,6 +132,12 @@ class _MuMixin:
         return all(getattr(type(self), n) is getattr(base, n) for n in names)
 
     def validate(self):
+        from .laws import FrictionLaw
+        law = self._values.get("mu_law")
+        if law is not None and not isinstance(law, FrictionLaw):
+            from ..errors import ParameterError
+            raise ParameterError(f"{type(self).__name__} '{self.name}': mu_law must be a friction law "
+                                 f"(regmech.components.laws.Stribeck(...)), got {law!r}")
         tab = self._values.get("mu_table")
         if tab is not None and (tab[0, 0] < 0 or np.any(tab[:, 1] < 0)):
             from ..errors import ParameterError

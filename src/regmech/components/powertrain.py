@@ -81,7 +81,7 @@ class Engine(Device):
     ``drag_map``: rows ``(w_k [rad/s], T_k [N m])``, the drag (motoring) torque
     at closed throttle -- friction and pumping losses, what a vehicle feels as
     engine braking on overrun -- interpolated as the full-load map; it opposes
-    the rotation (``T_k <= 0`` at ``w_k >= 0``, ``T_k >= 0`` at ``w_k <= 0``).
+    the rotation (``T_k <= 0`` at ``w_k >= 0``, ``T_k >= 0`` at ``w_k < 0``).
     Between closed and full throttle the torque is blended linearly (a common
     map-based engine model). Without it, a closed throttle gives no torque at
     all, as before.
@@ -101,6 +101,8 @@ class Engine(Device):
     drag_map = _MapParam(None, check="table", optional=True, unit="(rad/s, N m)",
                          doc="drag (motoring) torque at closed throttle vs speed, opposing the rotation")
     throttle = Param(1.0, check="signal", unit="1", doc="fraction of full load (0..1)")
+    drag_map = _MapParam(None, check="table", optional=True, unit="(rad/s, N m)",
+                         doc="drag (motoring) torque <= 0 at closed throttle vs speed")
     flanges = (("flange", ROTATIONAL), ("support", ROTATIONAL, True))
     rel_names = {ROTATIONAL: (None, None, None, "tau")}
 
@@ -147,11 +149,11 @@ class Engine(Device):
             w, T = drag[:, 0], drag[:, 1]
             if np.any(np.diff(w) <= 0):
                 raise ParameterError(f"Engine '{self.name}': drag_map speeds must increase strictly, got {w.tolist()}")
-            bad = np.nonzero(w * T > 0)[0]
+            bad = np.nonzero(((w >= 0) & (T > 0)) | ((w < 0) & (T < 0)))[0]
             if bad.size:
                 k = int(bad[0])
                 raise ParameterError(
-                    f"Engine '{self.name}': drag_map must oppose the rotation (T <= 0 at w >= 0, T >= 0 at w <= 0); "
+                    f"Engine '{self.name}': drag_map must oppose the rotation (T <= 0 at w >= 0, T >= 0 at w < 0); "
                     f"row {k} is (w={w[k]:g} rad/s, T={T[k]:g} N m). Give the drag torque with its sign, e.g. "
                     f"[(0, 0), (100, -15), (600, -60)]")
 

@@ -37,7 +37,12 @@ def gear_events(dev, mode, quadrant, w, tau_loss, lam_g):
     if mode == STUCK:
         hi, lo = dev.limits(tau_loss, lam_g)
         return hi - tau_loss, tau_loss - lo
-    return mode * w, quadrant * dev.tau_eta(mode, abs(w), tau_loss, lam_g)
+    # the driving side changes when tau_eta crosses zero; an offset of 1e-10 of the torques (below the
+    # tie threshold of _fix_quadrant, which then decides by where the torque goes) keeps a gear whose
+    # tau_eta stays at round-off (an unloaded idler at constant speed: a Gearbox's idle gears) from
+    # firing a root at every step (it chattered, ChatteringError, at t ~ 1e-11 s)
+    tie = 1e-10 * max(1.0, abs(tau_loss), abs(lam_g))
+    return mode * w, quadrant * dev.tau_eta(mode, abs(w), tau_loss, lam_g) + tie
 
 
 class GearSides:

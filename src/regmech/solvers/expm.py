@@ -203,12 +203,20 @@ def _nonlinear_components(c, t_start: float, t_end: float, samples: int) -> list
         nvar = 2 * tpl.k
         ref = None
         changed = np.zeros(g.n, bool)
-        for s in range(samples + 1):
+        # kinks and dead zones sit where a coordinate meets the instance's own parameters (a play centred
+        # at phi_rel0, an end stop's limits): random states alone missed a narrow play away from zero,
+        # and expm then integrated a Backlash as a linear spring (a silent wrong answer)
+        marks = _parameter_marks(g)
+        for s in range(samples + 1 + len(marks)):
             if s == 0:
                 variables = [np.zeros(g.n) for _ in range(nvar)]
-            else:
+            elif s <= samples:
                 scale = 10.0 ** rng.uniform(-6, 4, size=(nvar, 1))
                 variables = list(rng.standard_normal((nvar, g.n)) * scale)
+            else:
+                scale = 10.0 ** rng.uniform(-6, 4, size=(tpl.k, 1))
+                variables = [marks[s - samples - 1].copy() for _ in range(tpl.k)] + \
+                    list(rng.standard_normal((tpl.k, g.n)) * scale)
             with np.errstate(all="ignore"):
                 out = g.call(tpl.jac_fn, variables, float(times[s % len(times)]), False)
                 vals = np.array([np.broadcast_to(np.asarray(o, float), (g.n,)) for o in out])
@@ -230,6 +238,18 @@ def _nonlinear_components(c, t_start: float, t_end: float, samples: int) -> list
             if any(abs(d) > 0 or abs(r - laws[0][0]) > 1e-12 * (1 + abs(laws[0][0])) for r, d in laws):
                 bad.append(f"{type(dev).__name__} '{dev.name}'")
     return bad
+
+
+def _parameter_marks(g) -> list:
+    """Coordinates at which the laws of kernel group ``g`` may change: each finite parameter value,
+    just beside it, and midway between two of them (per instance, arrays of shape (n,))."""
+    vals = [np.nan_to_num(np.asarray(v, float)) for v in g.param_values][:8]
+    marks = []
+    for i, p in enumerate(vals):
+        off = 1e-6 * (1.0 + np.abs(p))
+        marks += [p, p + off, p - off]
+        marks += [(p + q) / 2 for q in vals[i + 1:]]
+    return marks
 
 
 def sliding_law(friction, j, mode, w_abs, t, left):
