@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import re
 import sys
 from pathlib import Path
 
@@ -34,9 +35,11 @@ def _doc(obj) -> str:
 
 def _signature(name: str, obj) -> str:
     try:
-        return f"{name}{inspect.signature(obj)}"
+        text = f"{name}{inspect.signature(obj)}"
     except (TypeError, ValueError):
         return name
+    # sentinel defaults print with their address, which changes from run to run: the file must not
+    return re.sub(r"<object object at 0x[0-9a-fA-F]+>", "<no default>", text)
 
 
 def _members(cls) -> list[tuple[str, object]]:
