@@ -8,15 +8,22 @@ every pair of returned runs agrees within the sum of their claims, every run wit
 (a count of equation evaluations, the same on every machine). A regmech error (a refusal) is allowed. The prescribed motions are smooth in the family groups;
 ``test_random_rough_references_are_refused_or_consistent`` draws speed jumps and position corners.
 
-Derandomized with a fixed number of examples per group (``EXAMPLES``) so that the suite is the same
-on every run and stays within its time budget in CI; a long campaign is ``benchmarks/fuzz.py``. A
-failure prints the model as a standalone script (``FUZZ_SHRINK=1`` lets hypothesis shrink it first).
+The CI set is a fixed list of seeds per group (``SEEDS``): each model is ``generate(random.Random(seed),
+...)``, the same on every machine, every hypothesis version and whatever else the test run imports. (It was
+drawn by hypothesis, derandomized, until that turned out to depend on the run: hypothesis mixes constants
+found in the loaded modules' source into its draws -- about 5 % of them --, so collecting two more test
+modules changed the models of two groups, and a fresh virtual environment with another hypothesis version
+would have drawn others again.) ``FUZZ_HYPOTHESIS=N`` runs the same property on N models per group drawn by
+hypothesis instead (exploration; a finding prints its model as a script, ``FUZZ_SHRINK=1`` shrinks it first).
+A long campaign is ``benchmarks/fuzz.py``.
 """
+
+import os
+import random
 
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-import os  # noqa: E402
 
 from hypothesis import HealthCheck, Phase, given, settings, strategies as st  # noqa: E402
 
@@ -38,6 +45,17 @@ GROUPS = {
     "electric": ["dc_motor", "electric_motor", "pi_control", "spring_damper", "shaft_elastic", "ideal_gear", "clutch"],
 }
 EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8}
+#: hypothesis' examples per group when exploring (``FUZZ_HYPOTHESIS``); 0: the fixed seeds only
+EXPLORE = int(os.environ.get("FUZZ_HYPOTHESIS", "0") or 0)
+
+
+#: the first CI seed of each group (a block of its own: groups never share a model)
+SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "rough": 5000, "electric": 6000}
+
+
+def seeds(group):
+    """The CI seeds of a group: ``EXAMPLES[group]`` seeds from ``SEED_BASE[group]``."""
+    return [SEED_BASE[group] + k for k in range(EXAMPLES[group])]
 
 
 def _check(rng, group, references="smooth", require=(), sources=SOURCES):
@@ -56,38 +74,17 @@ def _settings(group):
     phases = [Phase.explicit, Phase.reuse, Phase.generate]
     if os.environ.get("FUZZ_SHRINK"):
         phases.append(Phase.shrink)
-    return settings(max_examples=EXAMPLES[group], derandomize=True, deadline=None, database=None, phases=phases,
+    return settings(max_examples=max(EXPLORE, 1), deadline=None, database=None, phases=phases,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                            HealthCheck.filter_too_much])
 
 
-@_settings("links")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_links_and_sources(rng):
-    _check(rng, "links")
+def _explore(fn):
+    """The hypothesis version of a group's test: skipped unless ``FUZZ_HYPOTHESIS`` asks for it."""
+    return pytest.mark.skipif(not EXPLORE, reason="exploration: set FUZZ_HYPOTHESIS=N")(fn)
 
 
-@_settings("gears")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_gear_trains(rng):
-    _check(rng, "gears")
-
-
-@_settings("friction")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_friction_drivetrains(rng):
-    _check(rng, "friction")
-
-
-@_settings("vehicle")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_vehicles(rng):
-    _check(rng, "vehicle")
-
-
-@_settings("electric")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_electric_drives_and_control_loops(rng):
+def _electric(rng):
     # rotational sources only: the machines and loops are rotational, and a Force on a free Mass drew the
     # campaign's known range-accuracy shortfall (a speed varying little about a large value; seed 160 of
     # benchmarks/results/fuzz.md), which has nothing to do with these families
@@ -95,7 +92,51 @@ def test_random_electric_drives_and_control_loops(rng):
            sources=["torque", "speed", "position"])
 
 
-@_settings("rough")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_rough_references_are_refused_or_consistent(rng):
+def _rough(rng):
     _check(rng, "rough", references="rough", require=[rng.choice(["speed", "position"])])
+
+
+CHECKS = {"links": lambda rng: _check(rng, "links"), "gears": lambda rng: _check(rng, "gears"),
+          "friction": lambda rng: _check(rng, "friction"), "vehicle": lambda rng: _check(rng, "vehicle"),
+          "electric": _electric, "rough": _rough}
+
+
+@pytest.mark.parametrize("seed", seeds("links"))
+def test_random_links_and_sources(seed):
+    CHECKS["links"](random.Random(seed))
+
+
+@pytest.mark.parametrize("seed", seeds("gears"))
+def test_random_gear_trains(seed):
+    CHECKS["gears"](random.Random(seed))
+
+
+@pytest.mark.parametrize("seed", seeds("friction"))
+def test_random_friction_drivetrains(seed):
+    CHECKS["friction"](random.Random(seed))
+
+
+@pytest.mark.parametrize("seed", seeds("vehicle"))
+def test_random_vehicles(seed):
+    CHECKS["vehicle"](random.Random(seed))
+
+
+@pytest.mark.parametrize("seed", seeds("electric"))
+def test_random_electric_drives_and_control_loops(seed):
+    CHECKS["electric"](random.Random(seed))
+
+
+@pytest.mark.parametrize("seed", seeds("rough"))
+def test_random_rough_references_are_refused_or_consistent(seed):
+    CHECKS["rough"](random.Random(seed))
+
+
+@_explore
+@pytest.mark.parametrize("group", sorted(CHECKS))
+def test_hypothesis_exploration(group):
+    """The property on models drawn by hypothesis (``FUZZ_HYPOTHESIS=N`` per group)."""
+    @_settings(group)
+    @given(rng=st.randoms(use_true_random=False))
+    def run(rng):
+        CHECKS[group](rng)
+    run()

@@ -2,8 +2,9 @@
 clutches and brakes, LinearBrake, VehicleLoad, Gearbox, TorqueConverter): the property of
 ``test_fuzz.py`` (no finding of ``regmech.bench.fuzz.evaluate``) on models drawn from these families.
 
-A file of its own: hypothesis derives its derandomized examples from the test module, so adding a group to
-``test_fuzz.py`` changed the models its other groups draw."""
+Fixed seeds as in ``test_fuzz.py`` (the same models on every machine); ``FUZZ_HYPOTHESIS=N`` explores."""
+
+import random
 
 import pytest
 
@@ -11,7 +12,7 @@ hypothesis = pytest.importorskip("hypothesis")
 
 from hypothesis import given, strategies as st  # noqa: E402
 
-from test_fuzz import SOURCES, _check, _settings, GROUPS, EXAMPLES  # noqa: E402
+from test_fuzz import EXAMPLES, EXPLORE, GROUPS, SOURCES, _check, _settings  # noqa: E402
 
 GROUPS["driveline"] = ["end_stop", "elasto_gap", "speed_load", "stribeck_clutch", "linear_brake", "vehicle_load",
                        "gearbox", "torque_converter", "spring_damper"]
@@ -19,7 +20,18 @@ EXAMPLES["driveline"] = 8
 assert SOURCES
 
 
-@_settings("driveline")
-@given(rng=st.randoms(use_true_random=False))
-def test_random_drivelines_with_stops_loads_and_transmissions(rng):
-    _check(rng, "driveline")
+SEEDS = [9000 + k for k in range(EXAMPLES["driveline"])]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_random_drivelines_with_stops_loads_and_transmissions(seed):
+    _check(random.Random(seed), "driveline")
+
+
+@pytest.mark.skipif(not EXPLORE, reason="exploration: set FUZZ_HYPOTHESIS=N")
+def test_hypothesis_exploration_driveline():
+    @_settings("driveline")
+    @given(rng=st.randoms(use_true_random=False))
+    def run(rng):
+        _check(rng, "driveline")
+    run()
