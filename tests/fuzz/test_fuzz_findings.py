@@ -270,3 +270,52 @@ def test_dop853_slip_reversal_located_early_is_located_again(rtol):
     before = res.t < t_rev - 1e-9
     err = np.abs(res["J4.w"][before] - w4(res.t[before])).max()
     assert err <= 1e4 * rtol * np.ptp(res["J4.w"])
+
+
+@pytest.mark.parametrize("solver, rtol", [("scipy:DOP853", 1e-8), ("scipy:DOP853", 1e-10), ("ida", 1e-8)])
+def test_no_device_slides_against_its_acceleration_after_an_event(solver, rtol, monkeypatch):
+    """Seed 37 (a limited-slip differential whose lock, a lossy gear, a clutch and a bearing all sit on one
+    load path): at t = 0.19939 s a lossy gear's slip reverses; the mode logic broke the lock away backward
+    while the clutch and the bearing broke away forward in the same pass, after which the lock's relative
+    acceleration pointed forward. Its event function (mode * w_rel) started at -1e-63 and fell: it never
+    fired. At rtol 1e-10 a second event at the same instant happened to undo it; at rtol 1e-8 (w_rel of the
+    clutch exactly 0.0, which also kept the clutch in its old direction) it stayed: the lock and the clutch
+    supplied 6.7 W and 0.4 W, and J3.w ended at 16.9 rad/s instead of 0.0116 (ida and every other run).
+    Fixed in ``hybrid.logic.settle``: a device sliding at zero slip whose relative acceleration under the
+    chosen modes points the other way sticks again, and the iteration goes on."""
+    from regmech.bench.fuzz import generate_seed
+    from regmech.hybrid.logic import ModeLogic
+    from regmech.modes import BACKWARD, FORWARD
+    spec = generate_seed(37)
+    m = spec.build()
+    bad = []
+    settle = ModeLogic.settle
+
+    def checked(self, t, state, modes, crossed=None, initial=False):
+        y, yp, new, changes = settle(self, t, state, modes, crossed, initial)
+        x, v, a, lam, z = self.c.unpack(y, yp)
+        w, arel = self.w_rel(v), self.w_rel(a)
+        scale = 1e-9 * max(1.0, float(np.abs(v).max()))
+        a_tol = 1e-9 * max(1.0, float(np.abs(a).max()))
+        for j, dev in enumerate(self.devices):
+            if not dev.coupled and new[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and \
+                    new[j] * arel[j] < -a_tol:
+                bad.append((round(t, 6), dev.name, int(new[j]), float(arel[j])))
+        return y, yp, new, changes
+    monkeypatch.setattr(ModeLogic, "settle", checked)
+    res = m.simulate(0.3, dt_out=spec.dt_out, solver=solver, rtol=rtol)
+    assert bad == []
+    assert abs(res.final("J3.w")) < 0.01       # 7.4e-4 rad/s by ida and DOP853 at t = 0.3 s (16.9 at 0.96 s before)
+
+
+def test_unsettled_mode_logic_names_the_devices_that_kept_changing():
+    """The error of a mode iteration that does not settle named every friction device of the model; it names
+    those whose modes still changed in the second half of the passes, and says what to change."""
+    from regmech.hybrid import attach
+    from regmech.library import coupled_clutches
+    fr = attach(coupled_clutches().compile()).friction
+    names = [d.name for d in fr.devices]
+    changed = np.array([name == "clutch2" for name in names], int)
+    text = fr._unsettled_message(0.5, changed, 16)
+    assert "'clutch2' kept changing" in text and "'clutch1'" not in text and "'clutch3'" not in text
+    assert "compliance" in text and "t=0.5 s" in text
