@@ -53,8 +53,11 @@ class ModeLogic:
         # devices sliding at zero speed while another one holds the motion (see _relief_events):
         # their speed is zero by the holder's constraint, so its round-off sign says nothing;
         # only their relief event (or an event of the holder, below) changes them
-        for j, *_ in ([] if initial else self._relief):
+        relief = set() if initial else {j for j, *_ in self._relief}
+        for j in relief:
             w[j] = 0.0
+        # round-off of the relative accelerations (a device at rest, held by others, has |a_rel| below it)
+        a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
             engaged = dev.normal_force(t, left) > 0
@@ -77,12 +80,19 @@ class ModeLogic:
                 new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
             elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
                                                      (abs(w[j]) <= scale and
-                                                      (old[j] * arel[j] < 0 or old[j] * w[j] < 0))):
-                # found by the root finder, or within round-off of zero and not leaving it in its own
-                # direction: still approaching, exactly at zero and pushed back (w_rel = 0.0 exactly
-                # must not keep the mode: fuzz seed 37), or already past zero by round-off (several
-                # devices reaching zero slip at one instant; a device that has just broken away has
-                # w_rel ~ 0 too, but on its own side, leaving)
+                                                      (old[j] * arel[j] < -a_tol or
+                                                       (abs(arel[j]) <= a_tol and j not in relief)))):
+                # found by the root finder, or within round-off of zero slip and not leaving it in its own
+                # direction, decided by the relative acceleration beyond its round-off (the signs of a
+                # w_rel and an a_rel of 1e-20 are noise): pushed back or still approaching (several
+                # devices reaching zero slip at one instant; w_rel = 0.0 exactly must not keep the mode:
+                # fuzz seed 37), or at rest, held at zero slip by other devices: at rest it has its
+                # static capacity, and the holding-torque check below decides whether it breaks away
+                # (fuzz seed 102: a bearing held at rest through a planetary by a brake kept sliding
+                # with its kinetic torque, or stuck, by the round-off sign of an a_rel of 6e-18, when the
+                # brake let go). A device that has just broken away has w_rel ~ 0 too, but accelerates
+                # away on its own side; one whose relief event is set (``_relief_events``) changes only
+                # by that event or by an event of its holder.
                 new[j] = STUCK
             elif old[j] == STUCK and crossed[2 * j] != 0:
                 # the root of tau0_max - |lam| was located (to round-off) on either side of zero:
