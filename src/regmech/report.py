@@ -46,9 +46,9 @@ def family_of(comp) -> str:
 class ModelReport:
     """What ``m.check()`` / ``m.summary()`` found (see module docstring).
 
-    ``ok``: the model passed the regularity check (a violation raises instead,
-    so a returned check report is ok); ``problems``: the warnings raised on the
-    way (a stretched spectrum); ``families``: family -> {class name: [component
+    ``ok``: the model passed the regularity check (a violation raises instead)
+    and no warning was raised on the way; ``problems``: those warnings (a
+    stretched spectrum), each also shown as a ``RegularityWarning``; ``families``: family -> {class name: [component
     names]}; ``states``: differential states (positions and speeds of the
     coordinates not held by constraints, and internal states of devices); ``coordinates``:
     mass coordinates (one per group of masses joined directly); ``dof`` degrees of freedom; ``constraints``: {"position": n, "speed": n,
@@ -104,7 +104,9 @@ class ModelReport:
         return lines
 
     def __str__(self) -> str:
-        head = {"check": "regular mechanical system: OK" if self.ok else "PROBLEMS",
+        n = len(self.problems)
+        head = {"check": "regular mechanical system: OK" if self.ok else
+                f"regular mechanical system with {n} problem{'s' if n != 1 else ''} (below)",
                 "summary": "summary"}[self.kind]
         lines = [f"Model '{self.model}' {head} ({self.n_components} components)"]
         lines += self._family_text(names=self.kind == "summary")
@@ -148,7 +150,7 @@ def model_report(model, kind: str, regularity=None, problems=()) -> ModelReport:
         w = w[w > 0]
         if w.size:
             link_hz = (float(w.min()) / (2 * np.pi), float(w.max()) / (2 * np.pi))
-    return ModelReport(model=model.name, kind=kind, ok=True, problems=list(problems), families=families,
+    return ModelReport(model=model.name, kind=kind, ok=not problems, problems=list(problems), families=families,
                        states=int(compiled.ode_size()), coordinates=int(compiled.n),
                        internal_states=int(compiled.nz),
                        constraints={"position": int(compiled.mp), "speed": int(compiled.mv),

@@ -79,7 +79,11 @@ def test_auto_falls_back_when_its_first_choice_refuses(monkeypatch):
     from regmech.library import vehicle_launch
     monkeypatch.setattr(auto, "choose", lambda tr, acc: [("expm", "forced for the test"), ("ida", "fallback")])
     res = vehicle_launch().simulate(0.3, dt_out=5e-3)         # nonlinear: expm refuses, naming components
-    assert res.stats.solver == "ida" and "'expm' refused first" in res.stats.extra["auto_reason"]
+    reason = res.stats.extra["auto_reason"]
+    assert res.stats.solver == "ida" and "'expm' refused first" in reason
+    # the reason says ida is a fallback and why expm was chosen, not ida's own reason as if it had been preferred
+    assert reason.startswith("ida as a fallback: solver='auto' chose 'expm' (forced for the test)")
+    assert "'ida' ran instead (variable-order BDF" in reason and "fallback)" not in reason
 
 
 def test_periods_a_stepping_method_must_resolve():

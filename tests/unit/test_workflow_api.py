@@ -258,6 +258,8 @@ def test_check_report_lists_a_stretched_spectrum_as_a_problem():
     with pytest.warns(rm.RegularityWarning):
         rep = m.check()
     assert rep.problems and "stretched spectrum" in rep.problems[0] and "problem:" in str(rep)
+    # a report with problems is not ok, and its text does not say OK (before: ok was always True)
+    assert not rep.ok and "OK" not in str(rep) and "with 1 problem (below)" in str(rep)
 
 
 def test_summary_names_components_and_spectrum():

@@ -60,6 +60,14 @@ its class and message) or ``finding`` (a list of ``Finding(kind, detail)``):
     two solver runs that both returned differ by more than the sum of what
     each claims (``claimed_error``, ``agreement``): by far, by a little, or
     only against the range of a signal that varies little;
+``convergent-accuracy``
+    a disagreement (not by far) that shrinks with the tolerance: the same two
+    solvers at the other tolerance level (``COMPANIONS``) differ at least
+    ``CONVERGENCE`` times less (or more, for the references), and every run
+    involved makes the same mode changes as its companion. The runs converge
+    to one answer on one path; the looser of them is less accurate than the
+    stand-in claim ``CLAIM_PER_RTOL * rtol`` (an accuracy shortfall of
+    tolerance-proportional step control, not a different answer);
 ``default-accuracy``
     the default call (``RUNS`` label ``default``: ``m.simulate(t_end, dt_out)``,
     solver auto at the default accuracy 1e-3) is further from the tight
@@ -884,6 +892,12 @@ QUAD_SAFETY = 4.0
 
 #: a disagreement beyond this many times the claims is a wrong answer, not an accuracy shortfall
 GROSS = 100.0
+#: the runs of one solver at two tolerances (loose label -> tight label, rtol 100 times smaller): a pair's
+#: difference beyond the claims that shrinks with the tolerance is told from a path difference by them
+COMPANIONS = {"ida": "ida_ref", "dop853": "dop853_ref"}
+#: the pair at the other tolerance level must be at least this many times closer (of the 100 a
+#: tolerance-proportional error would give; IDA's global error went as rtol^0.8 on seed 86)
+CONVERGENCE = 10.0
 
 #: (label, solver, options); ``tight`` runs are the references
 RUNS = (
@@ -1180,6 +1194,9 @@ def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
       measure of the accuracy contract and of ``richardson``): a signal that varies little about a large
       value is less accurate than its variation needs.
 
+    A ``disagreement`` that the runs at the other tolerance level show to be convergent
+    (``_convergent``) is reported as ``convergent-accuracy`` instead.
+
     ``pairs`` (a dict) receives per pair the worst difference over its allowance on either scale.
     """
     pairs = {} if pairs is None else pairs
@@ -1198,6 +1215,12 @@ def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
         ranges[kind] = max(float(np.ptp(sampled[tight.label][n])) for n in names)
         mags[kind] = max(ranges[kind], max(float(np.abs(sampled[tight.label][n]).max()) for n in names))
     findings = []
+    gaps = {}           # per pair: the largest difference over max(range, |value|) of its kind
+    for i, a in enumerate(ok):
+        for b in ok[i + 1:]:
+            gap = max(float(np.abs(sampled[a.label][n] - sampled[b.label][n]).max()) / max(mags[kind], 1e-300)
+                      for kind, names in kinds.items() for n in names)
+            gaps[a.label, b.label] = gaps[b.label, a.label] = gap
     for i, a in enumerate(ok):
         for b in ok[i + 1:]:
             worst = {"range": (0.0, ""), "mag": (0.0, "")}
@@ -1220,11 +1243,71 @@ def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
             if worst["mag"][0] > 1.0:
                 info = worst["mag"][1]
                 kind = "wrong-answer" if worst["mag"][0] > GROSS else "disagreement"
+                if kind == "disagreement":
+                    why = _convergent(a.label, b.label, gaps, results)
+                    if why:
+                        kind, info = "convergent-accuracy", f"{info}; {why}"
                 findings.append(Finding(kind, info, f"{a.label}/{b.label}", info.split(":")[0]))
             elif worst["range"][0] > 1.0:
                 info = worst["range"][1]
                 findings.append(Finding("range-accuracy", info, f"{a.label}/{b.label}", info.split(":")[0]))
     return findings
+
+
+def _mode_changes(res):
+    """The mode changes of a run, as a multiset of (component, old, new): the path it took."""
+    from collections import Counter
+    return Counter((e.component, e.old_mode, e.new_mode) for e in res.events)
+
+
+def _convergent(a, b, gaps, results) -> str:
+    """Why the difference of runs ``a`` and ``b`` is convergent (see ``agreement``), or "".
+
+    With a loose run in the pair, the pair of their tight companions (``COMPANIONS``; a tight run is its own)
+    must differ at least ``CONVERGENCE`` times less; with two tight runs, the pair of their loose
+    counterparts at least ``CONVERGENCE`` times more; a loose run and its own tight companion: the tight
+    run and another solver's tight run at least ``CONVERGENCE`` times less. Every run must make the same
+    mode changes as its companion: a run that took another path (a missed or extra event, seed 37) is never excused, however
+    its difference scales.
+
+    Why: the campaign's claim for an adaptive run is a stand-in, ``CLAIM_PER_RTOL * rtol`` of the range,
+    not an estimate the run makes. A solver whose global error grows faster than its tolerance falls short of
+    it while being right: on seed 86 IDA's error on a tyre's slip speed went as rtol^0.8 (7.4e-4, 2.1e-4,
+    3.4e-5, 5.2e-6, 8.1e-7 of the range at rtol 1e-7 .. 1e-11 against rtol 1e-12, the largest at the
+    road contact's break-aways; DOP853 at 1e-10 agrees with ida at 1e-12), so at 1e-8 it was 2.1 times
+    the stand-in claim and at 1e-10 5.2 times. A wrong answer does not converge like that across both
+    solvers with unchanged paths."""
+    loose = {v: k for k, v in COMPANIONS.items()}
+    tight_a, tight_b = COMPANIONS.get(a, a), COMPANIONS.get(b, b)
+    if tight_a == b or tight_b == a:
+        # one solver at two tolerances (the loose run's own error): its tight run must agree with another
+        # solver's tight run CONVERGENCE times better
+        tight = tight_a if tight_a == b else tight_b
+        third = [r for r in COMPANIONS.values() if r != tight and (tight, r) in gaps]
+        if not third:
+            return ""
+        other, closer = (tight, third[0]), True
+        paths = [(a, b)]
+    elif (tight_a, tight_b) != (a, b):
+        other, closer = (tight_a, tight_b), True
+        paths = [(a, tight_a), (b, tight_b)]
+    else:
+        other, closer = (loose.get(a), loose.get(b)), False
+        paths = [(a, other[0]), (b, other[1])]
+    if None in other or other[0] == other[1] or other not in gaps or (a, b) not in gaps:
+        return ""
+    for run, comp in paths:
+        if run != comp and _mode_changes(results[run]) != _mode_changes(results[comp]):
+            return ""
+    here, there = gaps[a, b], gaps[other]
+    if closer and not there * CONVERGENCE <= here:
+        return ""
+    if not closer and not there >= CONVERGENCE * here:
+        return ""
+    return (f"convergent: {other[0]} and {other[1]} differ by {there:.2g} of max(range, |value|) "
+            f"({(here / max(there, 1e-300)) if closer else (there / max(here, 1e-300)):.3g} times "
+            f"{'less' if closer else 'more'}), and each run makes its "
+            f"companion's mode changes")
 
 
 def contract_error(res, ref, model, spec):

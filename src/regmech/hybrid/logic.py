@@ -53,8 +53,11 @@ class ModeLogic:
         # devices sliding at zero speed while another one holds the motion (see _relief_events):
         # their speed is zero by the holder's constraint, so its round-off sign says nothing;
         # only their relief event (or an event of the holder, below) changes them
-        for j, *_ in ([] if initial else self._relief):
+        relief = set() if initial else {j for j, *_ in self._relief}
+        for j in relief:
             w[j] = 0.0
+        # round-off of the relative accelerations (a device at rest, held by others, has |a_rel| below it)
+        a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
             engaged = dev.normal_force(t, left) > 0
@@ -77,13 +80,19 @@ class ModeLogic:
                 new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
             elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
                                                      (abs(w[j]) <= scale and
-                                                      (old[j] * arel[j] < 0 or old[j] * w[j] < 0))):
-                # found by the root finder, or within round-off of zero and not leaving it on its own side
-                # (approaching it, or accelerating through it: w_rel may be exactly 0 when another device's
-                # root at the same instant was the one located -- fuzz seed 37, a clutch and a lossy gear
-                # on either side of a light inertia), or already past it by round-off (several devices
-                # reaching zero slip at one instant); a device that has just broken away has w_rel ~ 0 too,
-                # but accelerates away on its own side
+                                                      (old[j] * arel[j] < -a_tol or
+                                                       (abs(arel[j]) <= a_tol and j not in relief)))):
+                # found by the root finder, or within round-off of zero slip and not leaving it in its own
+                # direction, decided by the relative acceleration beyond its round-off (the signs of a
+                # w_rel and an a_rel of 1e-20 are noise): pushed back or still approaching (several
+                # devices reaching zero slip at one instant; w_rel = 0.0 exactly must not keep the mode:
+                # fuzz seed 37), or at rest, held at zero slip by other devices: at rest it has its
+                # static capacity, and the holding-torque check below decides whether it breaks away
+                # (fuzz seed 102: a bearing held at rest through a planetary by a brake kept sliding
+                # with its kinetic torque, or stuck, by the round-off sign of an a_rel of 6e-18, when the
+                # brake let go). A device that has just broken away has w_rel ~ 0 too, but accelerates
+                # away on its own side; one whose relief event is set (``_relief_events``) changes only
+                # by that event or by an event of its holder.
                 new[j] = STUCK
             elif old[j] == STUCK and crossed[2 * j] != 0:
                 # the root of tau0_max - |lam| was located (to round-off) on either side of zero:
@@ -93,7 +102,10 @@ class ModeLogic:
         # 2. stuck devices: holding torques of the whole stuck set from one KKT solve; every device
         #    beyond its tau0_max breaks away at once (as in one Modelica event iteration), then repeat
         known = None
-        for _ in range(4 * self.mf + 4):
+        passes = 4 * self.mf + 4
+        changed_in = np.zeros(self.mf, int)     # passes in the second half in which each device changed
+        for k in range(passes):
+            before = new.copy()
             v = self._lock_velocities(t, x, v, new, old)
             try:
                 a, lam, dz = c.accelerations(t, x, v, z, new)
@@ -128,14 +140,30 @@ class ModeLogic:
                         and not dev.one_way:
                     new[j] = BACKWARD
                     changed = True
+            # a device sliding at zero slip must leave zero in its own direction under the modes now
+            # chosen. Several break-aways in one pass change each other's loads: on fuzz seed 37 a
+            # limited-slip lock broke away backward while a clutch and a bearing on its load path broke
+            # away too, after which the lock's relative acceleration was forward. Kept sliding, its
+            # friction would drive the motion and its event function (mode * w_rel, starting at zero)
+            # would fall and never cross: a silently wrong run. It sticks again; the next pass checks
+            # its holding torque against the capacity under the other devices' new modes.
+            if not changed:
+                w_now, a_now = self.w_rel(v), self.w_rel(a)
+                a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
+                for j, dev in enumerate(self.devices):
+                    if (not dev.coupled and new[j] in (FORWARD, BACKWARD) and abs(w_now[j]) <= scale
+                            and new[j] * a_now[j] < -a_tol):
+                        new[j] = STUCK
+                        changed = True
             if not changed:
                 break
+            if 2 * k >= passes:
+                changed_in += new != before
             # a holder let go: the devices it held (Held, at zero speed) hold again, and the
             # rule of _share_redundant decides among them on the next pass
             new[new == HELD] = STUCK
         else:
-            raise SimulationError(f"stick/slip logic did not settle at t={t:.9g} for "
-                                  f"{[d.name for d in self.devices]}")
+            raise SimulationError(self._unsettled_message(t, changed_in, passes))
         # the last pass solved the accelerations of the settled modes at (t, x, v, z): the restart reuses them
         y, yp = self._assemble_restart(t, x, v, z, new, lam, known)
         self._check_sliding_sides(t, y, yp, new, scale)
@@ -185,6 +213,17 @@ class ModeLogic:
         self._flips = set(flips)
         self._ev_key = None
         self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
+
+    def _unsettled_message(self, t, changed_in, passes):
+        """The error when the iteration did not settle: names the devices whose modes kept changing in the
+        second half of the passes (the others had settled), and what to change."""
+        moving = [j for j in range(self.mf) if changed_in[j]] or list(range(self.mf))
+        names = ", ".join(f"'{self.devices[j].name}'" for j in moving)
+        return (f"stick/slip logic did not settle at t={t:.9g} s: the modes of {names} kept changing "
+                f"({passes} passes; the other friction and loss devices had settled). Their laws admit no "
+                f"consistent set of modes at this instant, as with two lockable devices on one rigid group "
+                f"(their holding torques are not unique): put a compliance (an elastic Shaft or a "
+                f"SpringDamper) between them, or check their capacities (mu, peak, normal force)")
 
     @staticmethod
     def _one_way_step(dev, j, old, engaged, w, lam, crossed, initial, scale, t):

@@ -292,6 +292,12 @@ def large_model_bound(tr: Traits, accuracy: float) -> float:
     return steps_per_period(accuracy, tr.step_gain()) * tr.periods_bound() * max(1.0, tr.states / EXPM_STATES_REF)
 
 
+#: what each candidate of ``choose`` is, for the reason of a fallback
+METHODS = {"ida": "variable-order BDF with events located by root finding",
+           "expm": "the exact flow of the linear model",
+           "scipy:Radau": "an implicit Runge-Kutta method"}
+
+
 def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     """Candidates ``[(solver, reason), ...]`` in order (module docstring, rules 1-3)."""
     out = []
@@ -403,7 +409,13 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
         st.extra["estimate_time"] = max(0.0, elapsed - st.extra.get("wall_time_main", st.wall_time))
         text = f"{solver}: {reason} ({tr.describe()})"
         if refused:
-            text += "; " + "; ".join(f"'{s}' refused first: {' '.join(str(e).split())[:200]}" for s, e in refused)
+            # the reason says that this solver ran because the first choice refused, and why that one was
+            # chosen; this solver's own rule-3 reason would read as if it had been preferred
+            first, first_reason = candidates[0]
+            tried = "; ".join(f"'{s}' refused{' first' if k == 0 else ''}: {' '.join(str(e).split())[:200]}"
+                              for k, (s, e) in enumerate(refused))
+            text = (f"{solver} as a fallback: solver='auto' chose '{first}' ({first_reason}); {tried}; "
+                    f"'{solver}' ran instead ({METHODS.get(solver, solver)}) ({tr.describe()})")
         st.extra.update(auto_reason=text, auto_time=analysis)
         return res
     raise AssertionError("unreachable")     # pragma: no cover - the list always ends with ida

@@ -39,7 +39,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..hybrid import attach
 from ..result import Event, Result, Stats
-from . import register
+from . import register, sundials_log
 from .common import (Recorder, StateScale, check_link_spread, check_times, output_grid, run_deadline,
                      signal_breakpoints)
 from .options import (Choice, Flag, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
@@ -596,8 +596,14 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     else:
         solver = _reusable(reuse, modes, atol_vec)
     if solver is None:
-        solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
-                              max_steps, deadline, native)
+        with sundials_log.kept() as lines:        # SUNDIALS' lines go into the error, not to the terminal
+            try:
+                solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
+                                      max_steps, deadline, native)
+            except (RuntimeError, ValueError) as exc:
+                raise SimulationError(f"IDA could not be set up at t={t:.9g} in model '{model.name}': {exc}."
+                                      f"{sundials_log.said(lines)} Check the solver options (rtol, atol, "
+                                      f"max_step, max_order, max_steps).") from exc
         if reuse is not None:
             reuse.update(solver=solver, modes=np.array(modes), atol=atol_vec)
     tol = 1e-12 * max(1.0, abs(t_stop))      # grid points within round-off of an end are that end
@@ -609,13 +615,15 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     if len(tspan) == 2:       # two times would make IDA return every internal step
         tspan = np.array([t, 0.5 * (t + t_stop), t_stop])
         record = np.array([True, False, True])
-    try:
-        sol = solver.solve(tspan, order.to_solver(y), order.to_solver(yp))
-        if order.perm is not None and not getattr(sol, "unpermuted", False):
-            _unpermute(sol, order)
-    except (RuntimeError, ValueError, KeyError) as exc:
-        raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r}; components most "
-                              f"involved: {_blame(c, y, yp)}") from exc
+    with sundials_log.kept() as lines:            # SUNDIALS' lines go into the error, not to the terminal
+        try:
+            sol = solver.solve(tspan, order.to_solver(y), order.to_solver(yp))
+            if order.perm is not None and not getattr(sol, "unpermuted", False):
+                _unpermute(sol, order)
+        except (RuntimeError, ValueError, KeyError) as exc:
+            raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r};"
+                                  f"{sundials_log.said(lines)} components most involved: "
+                                  f"{_blame(c, y, yp)}") from exc
     if reuse is not None and sol.status not in (0, 1) and not native:
         reuse.clear()            # a mode event (its bookkeeping stays on the events function) or a failure
     stats.segments += 1
@@ -635,8 +643,12 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
                     f"a very stiff or chattering part, or simply a long interval (raise max_steps or lower dt_out)")
         hint = hint.rstrip(".")
         raise SimulationError(
-            f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}; components most involved: "
-            f"{_blame(c, last_y, last_yp)}. {hint}.{c.stiffness_hint()}")
+            f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}{sundials_log.said(lines)}; "
+            f"components most involved: {_blame(c, last_y, last_yp)}. {hint}.{c.stiffness_hint()}")
+    if lines:
+        # an error line from a solve that went on (none is known to occur): not dropped silently
+        warnings.warn(f"IDA reported at t={t:.9g}..{t_stop:.9g} in model '{model.name}':"
+                      f"{sundials_log.said(lines)}", RuntimeWarning, stacklevel=2)
     n_rows = len(sol.t)
     # rows 1.. of the solution, all at once; the event row (status 2) is recorded by the caller, before and
     # after settling; rows beyond ``tspan`` (none in IDA's normal mode) would be kept

@@ -38,6 +38,7 @@ import weakref
 import numpy as np
 
 from ..errors import SimulationError
+from . import sundials_log
 
 #: signal classes the kernels evaluate (``_native_kernels._signal``)
 _SUPPORTED = ("Constant", "Sine", "Step", "Ramp")
@@ -76,7 +77,10 @@ class _Libraries:
         # sunindextype is a C int in scikit-sundae's build (its c_config.pxi); checked below with the vectors
         self.ctx_create = sig(core.SUNContext_Create, i32, i32, ctypes.POINTER(vp))
         self.ctx_free = sig(core.SUNContext_Free, i32, ctypes.POINTER(vp))
-        self.ctx_quiet = sig(core.SUNContext_ClearErrHandlers, i32, vp)
+        # SUNDIALS' default error handler writes to the process's stderr; ours keeps the line for the
+        # SimulationError (``sundials_log``)
+        self.clear_err = sig(core.SUNContext_ClearErrHandlers, i32, vp)
+        self.push_err = sig(core.SUNContext_PushErrHandler, i32, vp, sundials_log.HANDLER_TYPE, vp)
         self.nv_new = sig(nvec.N_VNew_Serial, vp, idx, vp)
         self.nv_ptr = sig(nvec.N_VGetArrayPointer, vp, vp)
         self.nv_length = sig(nvec.N_VGetLength_Serial, idx, vp)
@@ -431,8 +435,10 @@ class NativeIDA:
         if lib.ctx_create(0, ctypes.byref(ctx)) != 0:
             raise SimulationError(f"the native IDA path could not create a SUNDIALS context for model "
                                   f"'{c.model.name}'; run it without native=True")
-        # no printing to stderr: a failure comes back as IDA's flag and is reported as a SimulationError
-        lib.ctx_quiet(ctx)
+        if lib.clear_err(ctx) != 0 or lib.push_err(ctx, sundials_log.handler, None) != 0:
+            lib.ctx_free(ctypes.byref(ctx))
+            raise SimulationError(f"the native IDA path could not install its error handler for model "
+                                  f"'{c.model.name}'; run it without native=True")
         yy, yp, at, idv = (lib.nv_new(N, ctx) for _ in range(4))
         if linsolver == "dense":
             A = lib.dense(N, N, ctx)
