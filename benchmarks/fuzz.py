@@ -31,10 +31,20 @@ RESULTS = ROOT / "benchmarks" / "results"
 CAUSES_BEGIN, CAUSES_END = "<!-- fuzz-causes:begin -->", "<!-- fuzz-causes:end -->"
 
 
-def _child(seed, conn, run_limit, max_calls):
+#: the families models are drawn from (``--families``): None all of them, or a tuple (``FAMILIES_BEFORE_17``: the
+#: models a seed drew before the families of issue 17 were added, to recheck an earlier campaign's seeds)
+FAMILY_SET = None
+
+
+def _families(name):
+    from regmech.bench.fuzz import FAMILIES_BEFORE_17
+    return {"all": None, "before17": FAMILIES_BEFORE_17}[name]
+
+
+def _child(seed, conn, run_limit, max_calls, families=None):
     from regmech.bench.fuzz import evaluate, generate_seed
     try:
-        spec = generate_seed(seed)
+        spec = generate_seed(seed, families=families)
         v = evaluate(spec, time_limit_s=run_limit, max_calls=max_calls)
         conn.send(v.to_dict())
     except BaseException as exc:      # noqa: BLE001 - reported, never raised in the parent
@@ -61,7 +71,7 @@ def _warm_up():
 
 def _start(seed, run_limit, max_calls, ctx):
     parent, child = ctx.Pipe(duplex=False)
-    p = ctx.Process(target=_child, args=(seed, child, run_limit, max_calls), daemon=True)
+    p = ctx.Process(target=_child, args=(seed, child, run_limit, max_calls, FAMILY_SET), daemon=True)
     p.start()
     child.close()
     return {"seed": seed, "proc": p, "conn": parent, "t0": time.perf_counter()}
@@ -69,7 +79,7 @@ def _start(seed, run_limit, max_calls, ctx):
 
 def _lost(seed, kind, detail, wall):
     from regmech.bench.fuzz import generate_seed
-    spec = generate_seed(seed)
+    spec = generate_seed(seed, families=FAMILY_SET)
     return {"name": spec.name, "seed": seed, "status": "finding", "families": spec.families, "runs": [],
             "findings": [{"kind": kind, "detail": detail, "run": "", "where": ""}], "refusals": [],
             "wall_s": wall, "n_components": 0}
@@ -314,10 +324,15 @@ def main(argv=None):
     ap.add_argument("--report-only", action="store_true", help="rewrite the report from --jsonl")
     ap.add_argument("--show", type=int, help="print the reproducer script of this seed and exit")
     ap.add_argument("--verbose", action="store_true")
+    ap.add_argument("--families", choices=("all", "before17"), default="all",
+                    help="families to draw from: all, or those before issue 17 (the models of an earlier campaign's "
+                         "seeds, e.g. to --recheck them)")
     args = ap.parse_args(argv)
+    global FAMILY_SET
+    FAMILY_SET = _families(args.families)
     if args.show is not None:
         from regmech.bench.fuzz import generate_seed
-        print(generate_seed(args.show).script("ida", rtol=1e-8))
+        print(generate_seed(args.show, families=FAMILY_SET).script("ida", rtol=1e-8))
         return 0
     wall = 0.0
     if not args.report_only:
