@@ -53,9 +53,24 @@ EXPLORE = int(os.environ.get("FUZZ_HYPOTHESIS", "0") or 0)
 SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "rough": 5000, "electric": 6000}
 
 
-def seeds(group):
-    """The CI seeds of a group: ``EXAMPLES[group]`` seeds from ``SEED_BASE[group]``."""
-    return [SEED_BASE[group] + k for k in range(EXAMPLES[group])]
+#: seeds of the CI set with findings that are still open (strict xfail: a fix turns them into failures to
+#: unmark); each is listed in benchmarks/results/fuzz.md's open causes
+OPEN = {
+    2002: "open: IDA at rtol 1e-10 cannot follow a Speed source whose reference is a Python callable (its "
+          "derivative, taken by finite differences, is noisy beyond the tolerance): max_steps after 300,000 "
+          "evaluations on a single driven inertia",
+    4004: "open: IDA needs more than 300,000 evaluations (the CI work budget) on two wheels with mu-table road "
+          "contacts, a position servo and a mu-table clutch",
+    9005: "open: range-accuracy on a slow signal (a speed varying by 1.25e-3 about 7.18 rad/s; the claim, relative to "
+          "the signal's range, is the campaign's known class, seeds 34/160/221)",
+}
+
+
+def seeds(group, base=None, count=None):
+    """The CI seeds of a group: ``EXAMPLES[group]`` seeds from ``SEED_BASE[group]``, open findings marked."""
+    first = SEED_BASE[group] if base is None else base
+    return [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=OPEN[s])) if s in OPEN else s
+            for s in range(first, first + (EXAMPLES[group] if count is None else count))]
 
 
 def _check(rng, group, references="smooth", require=(), sources=SOURCES):

@@ -12,7 +12,7 @@ hypothesis = pytest.importorskip("hypothesis")
 
 from hypothesis import given, strategies as st  # noqa: E402
 
-from test_fuzz import EXAMPLES, EXPLORE, GROUPS, SOURCES, _check, _settings  # noqa: E402
+from test_fuzz import EXAMPLES, EXPLORE, GROUPS, SOURCES, _check, _settings, seeds  # noqa: E402
 
 GROUPS["driveline"] = ["end_stop", "elasto_gap", "speed_load", "stribeck_clutch", "linear_brake", "vehicle_load",
                        "gearbox", "torque_converter", "spring_damper"]
@@ -20,7 +20,7 @@ EXAMPLES["driveline"] = 8
 assert SOURCES
 
 
-SEEDS = [9000 + k for k in range(EXAMPLES["driveline"])]
+SEEDS = seeds("driveline", base=9000, count=EXAMPLES["driveline"])
 
 
 @pytest.mark.parametrize("seed", SEEDS)
