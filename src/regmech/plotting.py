@@ -285,22 +285,35 @@ def _draw_events(res, axes, events, top, bottom=None):
     shown = groups[:MAX_EVENT_LABELS]
     span = float(res.t[-1] - res.t[0]) if len(res.t) > 1 else 1.0
     trans = mtransforms.blended_transform_factory(top.transData, top.transAxes)
-    # numbers closer than 1.5 % of the time span share one label ("3,4")
-    clusters: list = []
-    for k, (t, _) in enumerate(shown, start=1):
-        if clusters and t - clusters[-1][0] < 0.015 * span:
-            clusters[-1][1].append(k)
-        else:
-            clusters.append((t, [k]))
+    # numbers whose labels would touch share one label ("3,4"): a character of the 7.5 pt bold label is
+    # about 5 pt wide, the axes' width in points converts that to time
+    fig = top.figure
+    width_pt = max(top.get_position().width * fig.get_figwidth() * 72.0, 1.0)
+    char_t = 5.0 / width_pt * span
+    clusters: list = [(t, [k]) for k, (t, _) in enumerate(shown, start=1)]
+    merged = True
+    while merged and len(clusters) > 1:     # at most one merge less per pass: bounded by the number of labels
+        merged = False
+        for i in range(len(clusters) - 1):
+            (t1, k1), (t2, k2) = clusters[i], clusters[i + 1]
+            width = 0.5 * (len(",".join(map(str, k1))) + len(",".join(map(str, k2))) + 2) * char_t
+            if t2 - t1 < max(0.015 * span, width):
+                clusters[i:i + 2] = [(t1, k1 + k2)]
+                merged = True
+                break
     for t, ks in clusters:
         top.text(t, 1.01, ",".join(map(str, ks)), transform=trans, fontsize=7.5, ha="center", va="bottom",
                  color="0.15", fontweight="bold")
     lines = [f"{k:>2}  t = {t:.4f} s  {text}" for k, (t, text) in enumerate(shown, start=1)]
     if len(groups) > MAX_EVENT_LABELS:
         lines.append(f"    ... {len(groups) - MAX_EVENT_LABELS} more mode changes (res.events lists all)")
-    half = (len(lines) + 1) // 2 if len(lines) > 6 else len(lines)
-    cols = [lines[:half], lines[half:]] if half < len(lines) else [lines]
     where = bottom if bottom is not None else top
+    # two columns when the list is long and its longest line fits in half the axes' width (a monospace
+    # character of 7.5 pt is 4.5 pt wide); one otherwise, so that long device names never run into the next column
+    col_pt = 0.5 * max(where.get_position().width * fig.get_figwidth() * 72.0, 1.0)
+    fits = max(len(line) for line in lines) * 4.6 < col_pt - 6.0
+    half = (len(lines) + 1) // 2 if (len(lines) > 6 and fits) else len(lines)
+    cols = [lines[:half], lines[half:]] if half < len(lines) else [lines]
     for j, col in enumerate(cols):
         where.annotate("\n".join(col), xy=(0.5 * j, 0.0), xycoords="axes fraction", xytext=(0, -34),
                        textcoords="offset points", fontsize=7.5, va="top", ha="left", family="monospace",
