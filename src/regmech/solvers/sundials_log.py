@@ -19,8 +19,9 @@ while it is open are collected in the list it yields, and nothing else changes.
   ``print`` inside a signal callable) and every write of other threads go through unchanged and at
   once. Which thread is solving is thread-local state, so thread-pool sweeps keep each run's lines
   apart; the router is installed when the first thread enters and removed when the last one leaves
-  (if nothing replaced ``sys.stdout`` in between). Cost: a lock and two attribute swaps per solve,
-  microseconds.
+  (if nothing replaced ``sys.stdout`` in between). The router and every stream it wrote to stay alive
+  for the life of the process (``_streams``: a thread may still be inside ``print`` with a borrowed
+  reference to them). Cost: a lock and two attribute swaps per solve, microseconds.
 * native path: its SUNDIALS context gets ``handler()`` as its only error handler (a ctypes
   callback, called only when IDA reports an error), which hands the message to the same list.
 """
@@ -38,7 +39,13 @@ _LINE = re.compile(r"\A\s*\[(\w+), Error: (-?\d+)\]\s*(.*?)\s*\Z", re.S)
 _local = threading.local()
 _lock = threading.Lock()
 _inside = 0             # threads inside ``kept()``
-_router = None          # the ``_Router`` installed as sys.stdout while _inside > 0
+_router = None          # the one ``_Router``: installed as sys.stdout while _inside > 0, never released
+#: every stream the router has passed writes to, kept alive for the life of the process (a handful: the
+#: terminal's, pytest's, a notebook's). CPython 3.11's ``print`` holds only a borrowed reference to
+#: ``sys.stdout`` while it writes; a router (or a stream) released while another thread is inside such a
+#: ``print`` is freed under it: four failing solves in threads and a fifth thread printing crashed the
+#: interpreter (segmentation fault) in 3 of 3 runs when the router was dropped at the last exit
+_streams: dict = {}
 
 
 class _Router:
@@ -74,8 +81,14 @@ class kept:
         global _inside, _router
         with _lock:
             if _inside == 0:
-                _router = _Router(sys.stdout)
-                sys.stdout = _router
+                stream = sys.stdout
+                if stream is not _router:
+                    _streams.setdefault(id(stream), stream)
+                    if _router is None:
+                        _router = _Router(stream)
+                    else:
+                        _router._stream = stream
+                    sys.stdout = _router
             _inside += 1
         self.box: list[str] = []
         self.outer = getattr(_local, "box", None)
@@ -89,10 +102,8 @@ class kept:
             self.outer.extend(self.box)
         with _lock:
             _inside -= 1
-            if _inside == 0:
-                if sys.stdout is _router:        # else someone replaced it meanwhile: leave theirs
-                    sys.stdout = _router._stream
-                _router = None
+            if _inside == 0 and sys.stdout is _router:      # else someone replaced it meanwhile: leave theirs
+                sys.stdout = _router._stream     # the router object itself stays (see ``_streams``)
         return False
 
 
