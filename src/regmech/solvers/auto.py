@@ -383,13 +383,15 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
     refused = []
     for i, (solver, reason) in enumerate(candidates):
         fn = SOLVERS[solver]
-        unknown = sorted(set(options) - _accepted(fn))
+        # ``native`` says how ida runs; a fallback to another method (expm, Radau) simply runs without it
+        run_given = {k: v for k, v in options.items() if k != "native" or solver == "ida"}
+        unknown = sorted(set(run_given) - _accepted(fn))
         if unknown:
             from .options import unknown_message      # with the closest names, when there are
             raise ParameterError(f"simulate(): option(s) {unknown} are not options of '{solver}', which "
                                  f"solver='auto' chose ({reason}); name the solver that takes them. "
                                  f"{unknown_message(solver, fn.options, unknown)}")
-        run_options = _native_default(solver, options)
+        run_options = _native_default(solver, run_given)
         try:
             res = simulate_with_accuracy(model, solver, fn, t_start, t_end, dt_out, accuracy, run_options)
         except SimulationError as exc:
