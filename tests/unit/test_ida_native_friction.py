@@ -293,3 +293,17 @@ def test_kernels_evaluate_the_residual_and_event_functions_of_every_mode_set(key
             c.residual(t, y, yp, ref, modes)
             np.testing.assert_allclose(res, ref, rtol=1e-12, atol=1e-12)
     lib.nv_free(rr)
+
+
+def test_a_missed_slip_reversal_is_refused_not_run_on():
+    """brake_and_clutch on the Python callbacks at rtol 3e-7 (the rtol the accuracy contract tightens 1e-4 to):
+    the clutch's slip passes zero within a step unseen, and at the next event (the brake's, t = 2.805 s) it
+    is found sliding Backward at w_rel = +0.125. Flipping it there still left J3.w 6 % of its range off and the
+    clutch supplying 0.40 W: the run is refused (SimulationError naming the clutch), and solver="auto" goes on to
+    its next candidate, without passing ida's native option to it."""
+    build, t_end = SCENES["brake_and_clutch"]
+    with pytest.raises(rm.SimulationError, match=r"'clutch' would slide Backward.*against its own direction"):
+        build().simulate(t_end, dt_out=1e-2, solver="ida", rtol=3e-7, native=False)
+    res = build().simulate(t_end, dt_out=1e-2, accuracy=1e-4, native=False)
+    assert res.stats.solver != "ida" and "refused" in res.stats.extra["auto_reason"]
+    assert res["clutch.power"].min() >= -1e-6 * np.abs(res["clutch.power"]).max()

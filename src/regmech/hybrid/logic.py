@@ -78,12 +78,6 @@ class ModeLogic:
             elif old[j] == HELD:
                 # its holders kept it at zero speed (to round-off): it holds again unless it has moved
                 new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
-            elif old[j] in (FORWARD, BACKWARD) and old[j] * w[j] < -scale and crossed[2 * j] == 0:
-                # sliding against its own direction beyond round-off at this event: its slip passed zero
-                # unseen within a step (found on a clutch re-engaging by a Sine normal force, IDA at rtol 3e-7),
-                # so its direction is the sign of w_rel now, as a Modelica event iteration re-evaluates every
-                # relation at every event
-                new[j] = FORWARD if w[j] > 0 else BACKWARD
             elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
                                                      (abs(w[j]) <= scale and
                                                       (old[j] * arel[j] < -a_tol or
