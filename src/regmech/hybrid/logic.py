@@ -74,7 +74,11 @@ class ModeLogic:
             if not engaged:
                 new[j] = FREE
             elif initial or old[j] == FREE:
-                new[j] = FORWARD if w[j] > 0 else BACKWARD if w[j] < 0 else STUCK
+                # engaging (or starting) within round-off of zero slip: Stuck, and the holding-torque check
+                # below decides whether and which way it breaks away; a direction taken from the round-off
+                # sign of w_rel gave a guard (mode * w_rel) starting at zero, which IDA's root finding leaves
+                # inactive, so the slip passed zero unseen (a clutch re-engaged by a Sine normal force)
+                new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
             elif old[j] == HELD:
                 # its holders kept it at zero speed (to round-off): it holds again unless it has moved
                 new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
