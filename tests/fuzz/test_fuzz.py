@@ -8,7 +8,7 @@ every pair of returned runs agrees within the sum of their claims, every run wit
 (a count of equation evaluations, the same on every machine). A regmech error (a refusal) is allowed. The prescribed motions are smooth in the family groups;
 ``test_random_rough_references_are_refused_or_consistent`` draws speed jumps and position corners.
 
-The CI set is a fixed list of seeds per group (``SEEDS``): each model is ``generate(random.Random(seed),
+The CI set is a fixed list of seeds per group (``cases()``): each model is ``generate(random.Random(seed),
 ...)``, the same on every machine, every hypothesis version and whatever else the test run imports. (It was
 drawn by hypothesis, derandomized, until that turned out to depend on the run: hypothesis mixes constants
 found in the loaded modules' source into its draws -- about 5 % of them --, so collecting two more test
@@ -43,14 +43,19 @@ GROUPS = {
     "vehicle": ["wheel", "magic_formula_wheel", "road_load", "engine", "shaft_elastic", "clutch"],
     "rough": ["spring_damper", "shaft_rigid", "clutch", "differential"],
     "electric": ["dc_motor", "electric_motor", "pi_control", "spring_damper", "shaft_elastic", "ideal_gear", "clutch"],
+    # the components of issue 17: end stops, gaps, speed-dependent loads, Stribeck clutches and brakes,
+    # LinearBrake, VehicleLoad, Gearbox, TorqueConverter
+    "driveline": ["end_stop", "elasto_gap", "speed_load", "stribeck_clutch", "linear_brake", "vehicle_load",
+                  "gearbox", "torque_converter", "spring_damper"],
 }
-EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8}
+EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8, "driveline": 8}
 #: hypothesis' examples per group when exploring (``FUZZ_HYPOTHESIS``); 0: the fixed seeds only
 EXPLORE = int(os.environ.get("FUZZ_HYPOTHESIS", "0") or 0)
 
 
 #: the first CI seed of each group (a block of its own: groups never share a model)
-SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "rough": 5000, "electric": 6000}
+SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "rough": 5000, "electric": 6000,
+             "driveline": 9000}
 
 
 #: seeds of the CI set with findings that are still open (strict xfail: a fix turns them into failures to
@@ -66,11 +71,14 @@ OPEN = {
 }
 
 
-def seeds(group, base=None, count=None):
-    """The CI seeds of a group: ``EXAMPLES[group]`` seeds from ``SEED_BASE[group]``, open findings marked."""
-    first = SEED_BASE[group] if base is None else base
-    return [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=OPEN[s])) if s in OPEN else s
-            for s in range(first, first + (EXAMPLES[group] if count is None else count))]
+def cases():
+    """The CI models: ``EXAMPLES[group]`` seeds of each group from ``SEED_BASE[group]``, open findings marked."""
+    out = []
+    for group in GROUPS:
+        for seed in range(SEED_BASE[group], SEED_BASE[group] + EXAMPLES[group]):
+            marks = [pytest.mark.xfail(strict=True, reason=OPEN[seed])] if seed in OPEN else []
+            out.append(pytest.param(group, seed, marks=marks, id=f"{group}-{seed}"))
+    return out
 
 
 def _check(rng, group, references="smooth", require=(), sources=SOURCES):
@@ -111,39 +119,14 @@ def _rough(rng):
     _check(rng, "rough", references="rough", require=[rng.choice(["speed", "position"])])
 
 
-CHECKS = {"links": lambda rng: _check(rng, "links"), "gears": lambda rng: _check(rng, "gears"),
-          "friction": lambda rng: _check(rng, "friction"), "vehicle": lambda rng: _check(rng, "vehicle"),
-          "electric": _electric, "rough": _rough}
+CHECKS = {group: (lambda rng, group=group: _check(rng, group)) for group in GROUPS}
+CHECKS.update(electric=_electric, rough=_rough)
 
 
-@pytest.mark.parametrize("seed", seeds("links"))
-def test_random_links_and_sources(seed):
-    CHECKS["links"](random.Random(seed))
-
-
-@pytest.mark.parametrize("seed", seeds("gears"))
-def test_random_gear_trains(seed):
-    CHECKS["gears"](random.Random(seed))
-
-
-@pytest.mark.parametrize("seed", seeds("friction"))
-def test_random_friction_drivetrains(seed):
-    CHECKS["friction"](random.Random(seed))
-
-
-@pytest.mark.parametrize("seed", seeds("vehicle"))
-def test_random_vehicles(seed):
-    CHECKS["vehicle"](random.Random(seed))
-
-
-@pytest.mark.parametrize("seed", seeds("electric"))
-def test_random_electric_drives_and_control_loops(seed):
-    CHECKS["electric"](random.Random(seed))
-
-
-@pytest.mark.parametrize("seed", seeds("rough"))
-def test_random_rough_references_are_refused_or_consistent(seed):
-    CHECKS["rough"](random.Random(seed))
+@pytest.mark.parametrize("group, seed", cases())
+def test_random_drivetrains(group, seed):
+    """The property on the CI model of ``seed`` in ``group`` (``CHECKS``)."""
+    CHECKS[group](random.Random(seed))
 
 
 @_explore

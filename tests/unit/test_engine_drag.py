@@ -7,8 +7,8 @@ import pytest
 
 import regmech as rm
 from regmech.bench.fuzz import energy_checks
-from regmech.components import Engine, Inertia
-from regmech.signals import Table
+from regmech.components import Engine, Inertia, Speed
+from regmech.signals import Ramp, Table
 
 FULL = [(0.0, 100.0), (600.0, 100.0)]
 
@@ -50,3 +50,43 @@ def test_drag_map_errors_classes_and_pickling():
     assert type(d) is type(c) and np.array_equal(d.drag_map, c.drag_map)
     a.drag_map = [(0.0, -5.0)]
     assert type(a) is type(c)
+    with pytest.raises(rm.ParameterError, match=r"drag_map must oppose the rotation.*row 1"):
+        Engine("x", torque_map=FULL, drag_map=[[0.0, 0.0], [600.0, 60.0]])
+    a.drag_map = [[0.0, 0.0], [600.0, -30.0]]
+    assert type(a)._drag[1, 1] == -30.0 and type(a) is not type(c)
+
+
+#: the full-load map of the blend test: (rad/s, N m)
+FULL_MAP = [[0.0, 50.0], [100.0, 150.0], [400.0, 200.0], [600.0, 120.0]]
+TIGHT = dict(rtol=1e-10, atol=1e-10)
+
+DRAG_MAP = [[0.0, 0.0], [600.0, -60.0]]      # rad/s, N m: T_drag = -0.1 w
+
+
+def test_engine_drag_at_closed_throttle_brakes_as_the_closed_form():
+    """Closed throttle, no load: J dw/dt = T_drag(w) = -0.1 w, so w = w0 exp(-0.1 t / J) (engine braking)."""
+    m = rm.Model("overrun")
+    engine = m.add(Engine("engine", torque_map=FULL_MAP, drag_map=DRAG_MAP, throttle=0.0))
+    crank = m.add(Inertia("crank", J=0.2, w0=300.0))
+    m.connect(engine.flange, crank.flange_a)
+    res = m.simulate(2.0, dt_out=0.01, solver="ida", **TIGHT)
+    exact = 300.0 * np.exp(-0.1 * res.t / 0.2)
+    assert np.max(np.abs(res["crank.w"] - exact)) < 1e-6 * 300.0
+    assert np.all(res["engine.tau"] <= 0.0)
+    # the engine absorbs what the crank loses: the source's work is negative
+    assert np.all(res["engine.power"] >= 0.0)
+
+
+def test_engine_blends_full_load_and_drag_by_the_throttle():
+    m = rm.Model("engine_sweep_drag")
+    engine = m.add(Engine("engine", torque_map=FULL_MAP, drag_map=DRAG_MAP, throttle=Ramp(height=1.0, duration=1.0)))
+    crank = m.add(Inertia("crank", J=0.2))
+    drive = m.add(Speed("speed", w_ref=Ramp(height=500.0, duration=1.0, offset=50.0)))
+    m.connect(engine.flange, crank.flange_a)
+    m.connect(drive.flange, crank.flange_b)
+    res = m.simulate(1.0, dt_out=1e-2, rtol=1e-8, solver="ida")
+    w, thr = res["crank.w"], np.clip(res.t, 0.0, 1.0)
+    full = np.interp(w, *np.array(FULL_MAP).T)
+    drag = np.interp(w, *np.array(DRAG_MAP).T)
+    assert np.allclose(res["engine.tau"], thr * full + (1 - thr) * drag, rtol=1e-6, atol=1e-6)
+

@@ -52,6 +52,35 @@ def test_spring_to_the_ground_sets_the_mass_position():
     assert r["s.tau"][0] == pytest.approx(10.0 * 0.2, rel=1e-9)   # the preload
 
 
+def test_pretwisted_spring_oscillates_from_its_start_twist():
+    """Ground -- spring -- J: phi(t) = phi_rel_start cos(w t) + w_rel_start / w sin(w t)."""
+    c, J = 400.0, 0.25
+    m = rm.Model("pre")
+    g = m.add(Fixed("g"))
+    s = m.add(Spring("s", c=c, phi_rel_start=0.2, w_rel_start=3.0))
+    body = m.add(Inertia("body", J=J))
+    m.connect(g.flange, s.flange_a)
+    m.connect(s.flange_b, body.flange_a)
+    res = m.simulate(0.5, dt_out=1e-3, solver="ida", rtol=1e-10, atol=1e-12)
+    om = math.sqrt(c / J)
+    expect = 0.2 * np.cos(om * res.t) + 3.0 / om * np.sin(om * res.t)
+    assert np.max(np.abs(res["body.phi"] - expect)) < 1e-7
+
+
+def test_two_free_masses_share_the_start_twist_by_their_inertia():
+    m = rm.Model("pair")
+    J1 = m.add(Inertia("J1", J=1.0))
+    J2 = m.add(Inertia("J2", J=3.0))
+    s = m.add(Spring("s", c=100.0, phi_rel_start=0.2, w_rel_start=1.0))
+    m.connect(J1.flange_b, s.flange_a)
+    m.connect(s.flange_b, J2.flange_a)
+    res = m.simulate(0.01, dt_out=0.005, solver="ida", rtol=1e-10)
+    assert res["s.phi_rel"][0] == pytest.approx(0.2) and res["s.w_rel"][0] == pytest.approx(1.0)
+    # the least mass-weighted change from rest: no net angle or momentum
+    assert res["J1.phi"][0] + 3.0 * res["J2.phi"][0] == pytest.approx(0.0, abs=1e-12)
+    assert res["J1.w"][0] == pytest.approx(-0.75) and res["J2.w"][0] == pytest.approx(0.25)
+
+
 def test_translational_spring_start_length():
     m = rm.Model("slide")
     a = m.add(Mass("a", m=1.0, s0=1.0, v0=0.0))
@@ -61,6 +90,8 @@ def test_translational_spring_start_length():
     m.connect(s.flange_b, b.flange_a)
     r = m.simulate(0.1, 0.05, solver="ida")
     assert r["b.s"][0] == pytest.approx(0.95, abs=1e-12)
+    assert r["s.f"][0] == pytest.approx(50.0 * -0.05, rel=1e-9)       # the preload
+    assert s.param_unit("phi_rel_start") == "m"
     assert Spring.phi_rel_start.unit_in("translational") == "m"
     assert Spring.w_rel_start.unit_in("translational") == "m/s"
 
@@ -110,3 +141,8 @@ def test_signatures_show_the_start_parameters():
     assert sig.parameters["w_rel_start"].default is None
     assert "w_rel_start" in inspect.signature(Clutch).parameters
     assert "phi_rel_start" not in inspect.signature(Clutch).parameters
+
+
+def test_a_non_finite_start_value_on_a_device_is_refused():
+    with pytest.raises(rm.ParameterError, match="phi_rel_start"):
+        Spring("s", c=1.0, phi_rel_start=float("nan"))
