@@ -110,13 +110,22 @@ class ModeLogic:
         changed_in = np.zeros(self.mf, int)     # passes in the second half in which each device changed
         for k in range(passes):
             before = new.copy()
-            v = self._lock_velocities(t, x, v, new, old)
             try:
+                # locking can conflict like the accelerations can: two stuck devices and a motion source on
+                # one loop (a brake reaching zero slip on a mass a stuck clutch ties to a Speed source)
+                v = self._lock_velocities(t, x, v, new, old)
                 a, lam, dz = c.accelerations(t, x, v, z, new)
                 known = (a, lam, dz)
-            except StructureError:
+            except StructureError as exc:
                 if not self._share_redundant(t, x, v, z, new):
-                    raise
+                    if initial:
+                        raise
+                    # not a start value the user gave: the modes reached at this event contradict the model
+                    raise SimulationError(
+                        f"stick/slip logic at t={t:.9g} s: the friction modes reached at this event admit no "
+                        f"consistent motion ({str(exc).split('. Fix:')[0]}). This is a gap in regmech's mode "
+                        f"logic: please report it with the model; a compliance (an elastic Shaft) between the "
+                        f"stuck devices and the motion source avoids it") from exc
                 continue
             lam_f = lam[self.offset:]
             changed = False
@@ -155,9 +164,34 @@ class ModeLogic:
                 w_now, a_now = self.w_rel(v), self.w_rel(a)
                 a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
                 for j, dev in enumerate(self.devices):
-                    if (not dev.coupled and new[j] in (FORWARD, BACKWARD) and abs(w_now[j]) <= scale
+                    if (new[j] in (FORWARD, BACKWARD) and abs(w_now[j]) <= scale
                             and new[j] * a_now[j] < -a_tol):
                         new[j] = STUCK
+                        changed = True
+                    elif (not dev.coupled and new[j] in (FORWARD, BACKWARD) and old[j] in (STUCK, HELD)
+                          and new[j] * w_now[j] < -scale):
+                        # breaking away from rest, yet already moving against the direction its holding torque
+                        # gave: its slip could not be locked at zero (``_lock_velocities``) because a motion
+                        # source on its loop sets it (fuzz seed 10021); it slides the way the source drives it
+                        new[j] = -new[j]
+                        changed = True
+                    elif new[j] == HELD and abs(a_now[j]) > a_tol:
+                        # Held means that other stuck devices keep its motion at rest, so it carries no torque.
+                        # A device whose relative motion accelerates is not held but dragged: its dependent row
+                        # closed a loop through a motion source (a Speed source, a stuck clutch and a brake on
+                        # one mass, the source's speed passing zero). It slides the way it is driven, with its
+                        # kinetic torque; kept Held, it carried no torque while turning (a silently wrong run).
+                        # Where its static capacity can hold the holder's kinetic torque, it sticks and the holder
+                        # slides (``_stick_first``). Otherwise its speed is the source's: where the event was
+                        # located past the zero (beyond round-off) its sign decides, and the slip's next zero is a
+                        # new event
+                        first = self._stick_first(t, x, v, z, new, j, a_tol)
+                        if first is not None:
+                            new[:] = first
+                        elif abs(w_now[j]) > scale:
+                            new[j] = FORWARD if w_now[j] > 0 else BACKWARD
+                        else:
+                            new[j] = FORWARD if a_now[j] > 0 else BACKWARD
                         changed = True
             if not changed:
                 break
@@ -195,7 +229,7 @@ class ModeLogic:
         that a gap in them is an error, never a wrong answer."""
         w = self.w_rel(self.c.unpack(y, yp)[1])
         for j, dev in enumerate(self.devices):
-            if dev.coupled or modes[j] not in (FORWARD, BACKWARD):
+            if modes[j] not in (FORWARD, BACKWARD):
                 continue
             if modes[j] * w[j] < -max(scale, 1e-12 * abs(w).max(initial=0.0)):
                 raise SimulationError(
