@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 import regmech as rm
-from regmech.components import Brake, Clutch, Inertia, Speed
+from regmech.components import Brake, Clutch, Inertia, LimitedSlipDifferential, Speed
 
 J, T_END = 0.05, 0.5
 
@@ -140,3 +140,38 @@ def test_a_lossy_gear_breaking_away_in_a_clutch_event_rolls_the_way_it_moves(sol
     assert np.all(mode[rolling] * w_a[rolling] >= -1e-6 * np.abs(w_a).max())
     p = res["gear.power"]
     assert p.min() >= -1e-6 * np.abs(res["drive.power"]).max(), (p.min(), res.t[np.argmin(p)])
+
+
+def _two_bearings_on_a_locked_differential():
+    """Fuzz campaign seed 10169 (its unconnected mass on an ElastoGap left out): two BearingFriction on one
+    rigid motion (the carrier and one side of a limited-slip differential whose lock is stuck), driven by a DC
+    motor on a Sine voltage."""
+    from regmech.components import BearingFriction, DCMotor
+    from regmech.signals import Sine
+    m = rm.Model("two_bearings")
+    J1 = m.add(Inertia("J1", J=0.06508, w0=0.0, phi0=-0.1074))
+    b1 = m.add(BearingFriction("bearing1", tau_table=[(0.0, 1.844), (0.119, 0.1733)], peak=1.277))
+    lsd = m.add(LimitedSlipDifferential("lsd", ratio=1.0, preload=1601.0, mu=0.1524, cgeo=0.05, peak=1.298,
+                                        J_side=0.0008907))
+    motor = m.add(DCMotor("motor", u=Sine(amplitude=26.04, freq_hz=8.005, phase=2.613, offset=3.368,
+                                          start_time=0.1791), R=0.587, L=0.001222, k=0.114))
+    b2 = m.add(BearingFriction("bearing2", tau_table=[(0.0, 0.5458), (7.474, 0.1921)], peak=1.345))
+    m.connect(b1.flange, J1.flange_a)
+    m.connect(lsd.carrier, J1.flange_a)
+    m.connect(motor.flange, lsd.left)
+    m.connect(b2.flange, lsd.left)
+    return m
+
+
+def test_holding_in_turn_does_not_depend_on_a_round_off_event():
+    """At t = 0.20556 s the second holder (bearing2) passed its capacity while bearing1 slid at zero speed
+    (holding in turn). The logic re-stuck bearing1 with its static capacity; at the next event it would
+    re-stick bearing2 instead and break the motion away. IDA got that next event at once (a round-off crossing
+    of a slip of 1e-97), DOP853 1.7 ms later at bearing1's capacity: the runs ended 1 % of J1.phi's range
+    apart, each converged in its tolerance. ``settle`` now runs to a fixed point, so both break away at once."""
+    runs = {s: _two_bearings_on_a_locked_differential().simulate(0.6, dt_out=1e-3, solver=s, rtol=1e-8)
+            for s in ("ida", "scipy:DOP853")}
+    paths = {s: [(e.component, e.old_mode, e.new_mode) for e in r.events] for s, r in runs.items()}
+    assert paths["ida"] == paths["scipy:DOP853"]
+    a, b = runs["ida"], runs["scipy:DOP853"]
+    assert np.max(np.abs(a["J1.phi"] - b["J1.phi"])) < 1e-5 * np.ptp(b["J1.phi"])
