@@ -55,3 +55,36 @@ def test_coupled_clutches_at_1e_6_needs_one_pair():
     ref = m.simulate(case.t_end, case.dt_out, solver="scipy:DOP853", rtol=1e-11, atol=1e-13)
     from regmech.solvers.accuracy import compare_runs
     assert compare_runs(res, ref, labels, grid).value <= 1e-6
+
+
+def test_auto_keeps_the_modal_traits_with_the_compiled_system_until_the_model_changes():
+    """auto's modal traits (2-5 ms of linear form and eigenvalues on a small model) are computed once per
+    compiled system; a parameter change drops the system and with it the kept traits."""
+    import regmech.solvers.auto as auto
+    from regmech.components import Fixed, Inertia, Spring
+    import regmech as rm
+    m = rm.Model("osc")
+    m.add(Fixed("g"))
+    m.add(Spring("k", c=100.0))
+    m.add(Inertia("J", J=1.0, phi0=1.0))
+    m.connect(m["k"].flange_a, m["g"].flange)
+    m.connect(m["k"].flange_b, m["J"].flange_a)
+    calls = []
+    real = auto._modes
+
+    def counting(*args):
+        calls.append(args)
+        return real(*args)
+    auto._modes = counting
+    try:
+        tr = auto.traits(m, 0.0, 1.0, 1e-3)
+        f1 = tr.modes[:, 1].copy()
+        auto.traits(m, 0.0, 1.0, 1e-3).modes
+        assert len(calls) == 1
+        m["k"].c = 400.0                   # a change drops the compiled system and its kept traits
+        f2 = auto.traits(m, 0.0, 1.0, 1e-3).modes[:, 1]
+        assert len(calls) == 2
+    finally:
+        auto._modes = real
+    np.testing.assert_allclose(f1, [10.0 / (2 * np.pi)], rtol=1e-9)
+    np.testing.assert_allclose(f2, [20.0 / (2 * np.pi)], rtol=1e-9)
