@@ -29,14 +29,25 @@ def test_state_columns_read_what_the_named_signals_hold(key):
     np.testing.assert_array_equal(fast, named)
 
 
-def test_idas_first_rtol_shrinks_faster_than_the_accuracy():
-    """ida's global error grows faster than its tolerance shrinks (alpha ~ 0.85 over the calibration): its first
-    rtol follows accuracy^(1 + RTOL_SLOPE), the same as before at the anchor 1e-3."""
-    from regmech.solvers.accuracy import RTOL_ANCHOR, RTOL_FACTOR, first_rtol
-    assert first_rtol("ida", RTOL_ANCHOR) == pytest.approx(RTOL_FACTOR["ida"] * RTOL_ANCHOR)
-    ratios = [first_rtol("ida", a) / a for a in (1e-2, 1e-4, 1e-6)]
-    assert ratios[0] > ratios[1] > ratios[2]
-    assert first_rtol("scipy:DOP853", 1e-6) == pytest.approx(RTOL_FACTOR["scipy:DOP853"] * 1e-6)
+def test_idas_first_rtol_shrinks_faster_than_the_accuracy_on_its_native_path():
+    """ida's global error grows faster than its tolerance shrinks (alpha ~ 0.85 over the calibration): on the
+    native path, where a tighter run costs little more, its first rtol follows accuracy^(1 + RTOL_SLOPE) below
+    the anchor; above it, on the Python path and for the other solvers, accuracy * RTOL_FACTOR."""
+    from regmech.library import coupled_clutches, one_way_clutch
+    from regmech.solvers.accuracy import RTOL_ANCHOR, RTOL_FACTOR, first_rtol, native_served
+    f = RTOL_FACTOR["ida"]
+    assert first_rtol("ida", RTOL_ANCHOR, native=True) == pytest.approx(f * RTOL_ANCHOR)
+    ratios = [first_rtol("ida", a, native=True) / a for a in (1e-4, 1e-5, 1e-6)]
+    assert f > ratios[0] > ratios[1] > ratios[2]
+    assert first_rtol("ida", 1e-2, native=True) == pytest.approx(f * 1e-2)       # never looser
+    assert first_rtol("ida", 1e-6) == pytest.approx(f * 1e-6)
+    assert first_rtol("scipy:DOP853", 1e-6, native=True) == pytest.approx(RTOL_FACTOR["scipy:DOP853"] * 1e-6)
+    from regmech.solvers.ida_native import libraries
+    if isinstance(libraries(), str):
+        pytest.skip(f"no native path here: {libraries()}")
+    cc = coupled_clutches().compile()
+    assert native_served("ida", cc, {"native": True}) and not native_served("ida", cc, {})
+    assert not native_served("ida", one_way_clutch().compile(), {"native": True})   # one-way clutch: Python path
 
 
 def test_coupled_clutches_at_1e_6_needs_one_pair():

@@ -31,9 +31,10 @@ How it is estimated, per family of solver:
   conservative bound, which stays a bound as long as tightening the
   tolerance ten-fold at least halves the error. The first ``r`` is
   ``accuracy * RTOL_FACTOR[solver]``, times ``(accuracy / 1e-3) **
-  RTOL_SLOPE[solver]`` for a solver whose error grows faster than its
-  tolerance shrinks (``first_rtol``; measured, see BENCHMARKS.md,
-  calibration), or the user's ``rtol``; ``atol = ATOL_RATIO * r`` (or the
+  RTOL_SLOPE`` below 1e-3 for ida on its native path, whose error grows
+  faster than its tolerance shrinks and whose runs cost little more when
+  tighter (``first_rtol``; measured, see BENCHMARKS.md, calibration), or
+  the user's ``rtol``; ``atol = ATOL_RATIO * r`` (or the
   user's ratio), scaled down to the motion when its smallest range of a kind
   is below ``ATOL_RESCALE`` (``motion_scale``: the first run is then
   repeated with it; an atol made for a motion of 1 would hold a motion of
@@ -107,16 +108,18 @@ FIXED_STEP = ("euler", "rk4", "abm", "expm")
 #: the first rtol of the pair is ``accuracy * RTOL_FACTOR[solver]``: measured (calibration in BENCHMARKS.md)
 RTOL_FACTOR = {"ida": 0.03, "scipy:Radau": 0.5, "scipy:DOP853": 0.1, "scipy:RK45": 0.04, "scipy:RK23": 0.04,
                "scipy:BDF": 0.01, "scipy:LSODA": 0.03, "convolution": 0.003}
-#: ... times ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE[solver]``: a solver whose global error grows faster than
-#: its tolerance shrinks (``error ~ C rtol^alpha``, alpha < 1) needs a first rtol that shrinks faster than the
-#: accuracy, or the first pair misses at tight accuracies and a third run is made. Measured for ida (the
-#: calibration of BENCHMARKS.md, 24 cases and 100 random drivetrains, first pair at 0.03 a): the median estimate
-#: over a was 0.054, 0.074, 0.079, 0.107, 0.208 at a = 1e-2 .. 1e-6 (alpha = 0.85) and 3 %, 8 %, 9 %, 12 %,
-#: 20 % of the runs needed another run; on CoupledClutches at a = 1e-6 the pair at 3e-8 / 3e-9 estimated 1.2e-6
-#: (a third run at 3e-10), at 1e-8 / 1e-9 1.5e-7. The slope 1 / alpha - 1 = 0.15 keeps the median estimate near
-#: 0.075 a at every level; ida's run time changes little with rtol on event-driven models (CoupledClutches,
-#: native: 3.5 ms at 3e-5, 5.0 ms at 3e-10), so a third run costs more than a tighter first pair
-RTOL_SLOPE = {"ida": 0.15}
+#: ... times ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below RTOL_ANCHOR for ida on its native path
+#: (``native_served``): its global error grows faster than its tolerance shrinks (``error ~ C rtol^alpha``; the
+#: calibration of BENCHMARKS.md, 24 cases and 100 random drivetrains, first pair at 0.03 a: median estimate over
+#: a 0.054, 0.074, 0.079, 0.107, 0.208 at a = 1e-2 .. 1e-6, alpha = 0.85), so at tight accuracies the first pair
+#: misses more often and a third run is made (CoupledClutches at 1e-6: 3e-8 / 3e-9 estimated 1.2e-6, 1e-8 / 1e-9
+#: 1.5e-7). A native run's time changes little with rtol (events and set-up dominate: CoupledClutches 3.5 ms at
+#: 3e-5, 5.0 ms at 3e-10), so a tighter pair costs less than a third run there. Measured side by side, slope 0.15
+#: against none (load 4-6, medians of 3): native cells at 1e-6 0.43x-1.35x, geometric mean 0.86 (CoupledClutches
+#: 0.71, one pair instead of two); at 1e-4 and 1e-5 0.98x-1.26x (the price: no retry saved there); on the Python
+#: path much dearer (vehicle_launch at 1e-5 3.5x, one_way_clutch at 1e-4 1.85x: stiff nonlinear steps) and above
+#: the anchor a looser first pair retried more (auto at 1e-2: 3 of 24 cases against 1), so neither is done
+RTOL_SLOPE = 0.15
 RTOL_ANCHOR = 1e-3
 #: atol = ATOL_RATIO * rtol (the solvers' default) for a motion of magnitude 1 or more; for a smaller one
 #: (the smallest range of a kind of state signal that moves, ``motion_scale``, below ATOL_RESCALE after the
@@ -149,10 +152,28 @@ def check_accuracy(accuracy) -> float:
         f"{accuracy!r}")
 
 
-def first_rtol(solver: str, accuracy: float) -> float:
-    """The rtol of the first (looser) run of an adaptive solver's pair: ``accuracy * RTOL_FACTOR[solver] *
-    (accuracy / RTOL_ANCHOR) ** RTOL_SLOPE[solver]``."""
-    return accuracy * RTOL_FACTOR.get(solver, 0.01) * (accuracy / RTOL_ANCHOR) ** RTOL_SLOPE.get(solver, 0.0)
+def first_rtol(solver: str, accuracy: float, native: bool = False) -> float:
+    """The rtol of the first (looser) run of an adaptive solver's pair: ``accuracy * RTOL_FACTOR[solver]``, times
+    ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below the anchor for ida on its native path (``native``)."""
+    r = accuracy * RTOL_FACTOR.get(solver, 0.01)
+    if native and solver == "ida" and accuracy < RTOL_ANCHOR:
+        r *= (accuracy / RTOL_ANCHOR) ** RTOL_SLOPE
+    return r
+
+
+def native_served(solver: str, c, options: dict) -> bool:
+    """Whether the runs of ``solver`` with ``options`` go through ida's compiled callbacks (``ida_native``)."""
+    if solver != "ida" or not options.get("native"):
+        return False
+    from .ida import choose_linsolver
+    from .ida_native import eligible, libraries
+    if isinstance(libraries(), str):
+        return False
+    try:
+        linsolver = options.get("linsolver") or choose_linsolver(c, options.get("dense_max", 60))[0]
+        return eligible(c, linsolver) is None
+    except Exception:       # noqa: BLE001 - a model the check cannot judge runs as if not native
+        return False
 
 
 def is_fixed_step(solver: str, options: dict) -> bool:
@@ -382,8 +403,8 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     atol0 = options.pop("atol", None)
     if rtol0 is not None and not (isinstance(rtol0, (int, float)) and not isinstance(rtol0, bool) and rtol0 > 0):
         raise ParameterError(f"solver '{solver}': rtol must be a positive number, got {rtol0!r}")
-    r = float(rtol0) if rtol0 is not None else first_rtol(solver, accuracy)
     c = model.compile()
+    r = float(rtol0) if rtol0 is not None else first_rtol(solver, accuracy, native_served(solver, c, options))
     # the stiffest link's round-off bounds the useful rtol (common.check_link_spread): the pair never goes
     # below it; an accuracy that would need a tighter one is refused naming the link
     floor = spread_rtol_floor(c) if options.get("stiff_check", True) else None
