@@ -141,7 +141,9 @@ def test_a_large_linear_model_goes_to_expm_only_where_its_steps_repay_them():
     # regression: rule 3 sent every linear model above MODAL_MAX coordinates to expm at accuracy <= 1e-4, also
     # the 100-inertia chain driven at 5 Hz at 1e-6, where the forcing needs thousands of expm steps against a
     # few dozen periods of its fastest mode (expm 1.0 s, ida 0.25 s)
+    # (measured with ida's Python callbacks: that path's weight; the native one, below)
     tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
+    tr.ida_gain = 1.0
     assert tr.modes is None and tr.linear          # too large for the modal traits
     assert tr.expm_steps_at(1e-6) > auto.large_model_bound(tr, 1e-6)
     first, reason = auto.choose(tr, 1e-6)[0]
@@ -154,7 +156,9 @@ def test_a_large_linear_model_goes_to_expm_only_where_its_steps_repay_them():
 
 def test_rule_3_weighs_the_size_of_the_model():
     # the same steps and periods: a ten times larger model makes each step of ida dearer, so expm repays more
+    # (ida's Python callbacks: that path's weight)
     tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
+    tr.ida_gain = 1.0
     big = auto.Traits(**{**{f: getattr(tr, f) for f in ("linear", "nonlinear", "floor", "spread", "modes_of", "span",
                                                        "expm_steps", "friction", "f_bound", "f_forcing")},
                          "states": 10 * tr.states})
@@ -185,3 +189,23 @@ def test_native_ida_steps_count_where_the_periods_are_complete():
     tr.ida_gain = auto.native_gain(tr.states)
     assert tr.step_gain() == 1.0 and auto.choose(tr, 1e-3)[0][0] == "expm"
     assert auto.native_gain(20) == pytest.approx(4.0) and auto.native_gain(2000) < 1.15
+
+
+def test_rule_3_with_native_ida_weighs_its_cheap_steps():
+    """Native ida against expm under the contract on the 5 Hz-driven chains (auto_rules.md): native ida was
+    faster in every measured cell up to 100 inertias (the chain of 100 at 1e-2 and dt_out 1e-2: 29 ms against
+    expm's 60 ms, which rule 3's Python-path weight chose; this file's chain of 100: 82 ms against 149 ms),
+    expm in every cell at 1000 inertias."""
+    tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
+    tr.ida_gain = auto.native_gain(tr.states)
+    assert tr.modes is None
+    for acc in (1e-2, 1e-3, 1e-4, 1e-6):
+        assert auto.choose(tr, acc)[0][0] == "ida"
+    big = auto.traits(sine_driven_chain(1000), 0.0, 1.0, 1e-2)
+    big.ida_gain = auto.native_gain(big.states)
+    for acc in (1e-2, 1e-3, 1e-4, 1e-6):
+        assert auto.choose(big, acc)[0][0] == "expm"
+    # never weighted above the Python path's weight (a native step is not dearer than a Python one)
+    for states in (100, 400, 2000, 20000):
+        assert auto.native_size_weight(states) <= 1.0 or states > auto.EXPM_STATES_REF
+    assert auto.native_size_weight(200) < 0.2 < 3.5 < auto.native_size_weight(2000) < 10.0

@@ -561,9 +561,18 @@ def _auto_rules_text(records) -> list[str]:
         f"* **expm for large linear models whose steps are within the bounded periods** (more than "
         f"{auto.MODAL_MAX} coordinates, no modal traits: `expm_steps(a) <= K(a) span f_bound max(1, states / "
         f"{auto.EXPM_STATES_REF:g})`, f_bound the Gershgorin bound of the highest frequency; the chains of "
-        f"auto_rules.md): {pair('train_100', 1e-4)}; {pair('train_100', 1e-6)}; {pair('train_100', 1e-2)}.",
-        "* Misses: the cells of the auto table above the target, all within 2x; a rule for them would rest on one "
-        "case each.", ""]
+        f"auto_rules.md): {pair('train_100', 1e-4)}; {pair('train_100', 1e-6)}; {pair('train_100', 1e-2)} "
+        f"(train_100's RoadLoad keeps ida on its Python callbacks). When ida runs with compiled callbacks "
+        f"(`native=True`, auto's ida when numba is installed) the weight is `min(max(1, states / "
+        f"{auto.EXPM_STATES_REF:g}), (states / {auto.NATIVE_EXPM_STATES:g})^{auto.NATIVE_EXPM_POWER:g})`: on the "
+        f"5 Hz-driven chains of auto_rules.md native ida beat expm in every cell up to 100 inertias (the "
+        f"100-inertia chain at 1e-3, dt_out 1e-2: 29 ms against 41 ms under the contract; the old weight chose "
+        f"expm) and lost every cell at 1000.",
+        f"* **ida's compiled callbacks** (`ida_native`): K(a) is divided by `native_gain(states)` in rule 1 where "
+        f"the periods counted are all ida must resolve. The `ida` column of this campaign is ida's Python path "
+        f"(`solver=\"ida\"` without `native=True`); auto's ida runs natively where the model allows, so its "
+        f"cells can be well below the `ida` column's.",
+        "* Misses: the cells of the auto table above the target; a rule for them would rest on one case each.", ""]
 
 
 def write_calibration_report(records, cases, out_dir: Path, machine=None, limit=30.0, wall_total=0.0,
@@ -754,3 +763,11 @@ def random_markdown(records, cases, machine: dict, limit: float, wall_total: flo
 __all__ = ["LEVELS", "SOLVERS", "CalCase", "all_cases", "library_cases", "hard_cases", "reference", "run_cell",
            "run_calibration", "auto_cells", "retime", "load_records", "save_records", "write_calibration_report",
            "run_all", "random_cases", "run_random", "random_markdown", "RANDOM_CELLS"]
+
+
+if __name__ == "__main__":  # pragma: no cover - ``python -m regmech.bench.calibration [options]``
+    import sys
+
+    from .cli import main
+    # the same campaign as ``regmech bench --calibration [options]`` (options: --scenes, --solvers, --out, ...)
+    sys.exit(main(["--calibration", *sys.argv[1:]]))

@@ -30,8 +30,11 @@ How it is estimated, per family of solver:
   ``TIGHTEN^alpha - 1`` (9 for alpha = 1) times the returned run's: a
   conservative bound, which stays a bound as long as tightening the
   tolerance ten-fold at least halves the error. The first ``r`` is
-  ``accuracy * RTOL_FACTOR[solver]`` (measured, see BENCHMARKS.md,
-  calibration), or the user's ``rtol``; ``atol = ATOL_RATIO * r`` (or the
+  ``accuracy * RTOL_FACTOR[solver]``, times ``(accuracy / 1e-3) **
+  RTOL_SLOPE`` below 1e-3 for ida on its native path, whose error grows
+  faster than its tolerance shrinks and whose runs cost little more when
+  tighter (``first_rtol``; measured, see BENCHMARKS.md, calibration), or
+  the user's ``rtol``; ``atol = ATOL_RATIO * r`` (or the
   user's ratio), scaled down to the motion when its smallest range of a kind
   is below ``ATOL_RESCALE`` (``motion_scale``: the first run is then
   repeated with it; an atol made for a motion of 1 would hold a motion of
@@ -105,6 +108,19 @@ FIXED_STEP = ("euler", "rk4", "abm", "expm")
 #: the first rtol of the pair is ``accuracy * RTOL_FACTOR[solver]``: measured (calibration in BENCHMARKS.md)
 RTOL_FACTOR = {"ida": 0.03, "scipy:Radau": 0.5, "scipy:DOP853": 0.1, "scipy:RK45": 0.04, "scipy:RK23": 0.04,
                "scipy:BDF": 0.01, "scipy:LSODA": 0.03, "convolution": 0.003}
+#: ... times ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below RTOL_ANCHOR for ida on its native path
+#: (``native_served``): its global error grows faster than its tolerance shrinks (``error ~ C rtol^alpha``; the
+#: calibration of BENCHMARKS.md, 24 cases and 100 random drivetrains, first pair at 0.03 a: median estimate over
+#: a 0.054, 0.074, 0.079, 0.107, 0.208 at a = 1e-2 .. 1e-6, alpha = 0.85), so at tight accuracies the first pair
+#: misses more often and a third run is made (CoupledClutches at 1e-6: 3e-8 / 3e-9 estimated 1.2e-6, 1e-8 / 1e-9
+#: 1.5e-7). A native run's time changes little with rtol (events and set-up dominate: CoupledClutches 3.5 ms at
+#: 3e-5, 5.0 ms at 3e-10), so a tighter pair costs less than a third run there. Measured side by side, slope 0.15
+#: against none (load 4-6, medians of 3): native cells at 1e-6 0.43x-1.35x, geometric mean 0.86 (CoupledClutches
+#: 0.71, one pair instead of two); at 1e-4 and 1e-5 0.98x-1.26x (the price: no retry saved there); on the Python
+#: path much dearer (vehicle_launch at 1e-5 3.5x, one_way_clutch at 1e-4 1.85x: stiff nonlinear steps) and above
+#: the anchor a looser first pair retried more (auto at 1e-2: 3 of 24 cases against 1), so neither is done
+RTOL_SLOPE = 0.15
+RTOL_ANCHOR = 1e-3
 #: atol = ATOL_RATIO * rtol (the solvers' default) for a motion of magnitude 1 or more; for a smaller one
 #: (the smallest range of a kind of state signal that moves, ``motion_scale``, below ATOL_RESCALE after the
 #: first run) the pair is run with atol scaled down to it, but not below ATOL_SCALE_MIN times
@@ -136,6 +152,30 @@ def check_accuracy(accuracy) -> float:
         f"{accuracy!r}")
 
 
+def first_rtol(solver: str, accuracy: float, native: bool = False) -> float:
+    """The rtol of the first (looser) run of an adaptive solver's pair: ``accuracy * RTOL_FACTOR[solver]``, times
+    ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below the anchor for ida on its native path (``native``)."""
+    r = accuracy * RTOL_FACTOR.get(solver, 0.01)
+    if native and solver == "ida" and accuracy < RTOL_ANCHOR:
+        r *= (accuracy / RTOL_ANCHOR) ** RTOL_SLOPE
+    return r
+
+
+def native_served(solver: str, c, options: dict) -> bool:
+    """Whether the runs of ``solver`` with ``options`` go through ida's compiled callbacks (``ida_native``)."""
+    if solver != "ida" or not options.get("native"):
+        return False
+    from .ida import choose_linsolver
+    from .ida_native import eligible, libraries
+    if isinstance(libraries(), str):
+        return False
+    try:
+        linsolver = options.get("linsolver") or choose_linsolver(c, options.get("dense_max", 60))[0]
+        return eligible(c, linsolver) is None
+    except Exception:       # noqa: BLE001 - a model the check cannot judge runs as if not native
+        return False
+
+
 def is_fixed_step(solver: str, options: dict) -> bool:
     return solver in FIXED_STEP or (solver == "convolution" and options.get("h") is not None)
 
@@ -144,18 +184,29 @@ def is_fixed_step(solver: str, options: dict) -> bool:
 def result_state_labels(c) -> list[StateLabel]:
     """Signal, component and kind of every state signal of a result: position and speed of each mass (one
     body per coordinate: bodies joined rigidly share it), then each internal state."""
+    return [lab for lab, _ in _state_signals(c)]
+
+
+def state_columns(c) -> np.ndarray:
+    """The column of ``y`` (a trajectory's ``Y``) holding each state signal of ``result_state_labels(c)``,
+    in its order: the position ``x_k`` and the speed ``v_k`` of the body's coordinate, the internal state
+    ``z_j`` (the outputs' own recipes, ``compile.outputs``, read the same columns)."""
+    return np.array([col for _, col in _state_signals(c)], dtype=np.intp)
+
+
+def _state_signals(c) -> list:
     st = c.structure
-    labels = []
-    for level in (0, 1):
-        for node in st.coord_node:
+    out = []
+    for level, cols in ((0, c.ix), (1, c.iv)):
+        for k, node in enumerate(st.coord_node):
             if node.bodies:
                 body = node.bodies[0]
                 var = body.var_names()[level]
-                labels.append(StateLabel(f"{body.name}.{var}", body.name, var))
-    for name in c.state_names:
+                out.append((StateLabel(f"{body.name}.{var}", body.name, var), int(cols[k])))
+    for j, name in enumerate(c.state_names):
         comp, var = name.rsplit(".", 1)
-        labels.append(StateLabel(name, comp, f"state:{var}"))
-    return labels
+        out.append((StateLabel(name, comp, f"state:{var}"), int(c.iz[j])))
+    return out
 
 
 def grid_rows(t: np.ndarray, grid: np.ndarray) -> np.ndarray:
@@ -166,11 +217,18 @@ def grid_rows(t: np.ndarray, grid: np.ndarray) -> np.ndarray:
     return np.clip(k, 0, len(t) - 1)
 
 
-def state_matrix(res, labels, grid) -> np.ndarray:
-    """The state signals of ``res`` at the grid instants, one column per label."""
+def state_matrix(res, labels, grid, columns=None) -> np.ndarray:
+    """The state signals of ``res`` at the grid instants, one column per label. ``columns``
+    (``state_columns`` of the compiled system that made ``res``): read from the stored rows directly,
+    without building each signal over the whole run (a tenth of a millisecond per signal on small
+    models, which the contract paid for both runs of every pair)."""
     rows = grid_rows(np.asarray(res.t, float), grid)
     if not labels:
         return np.zeros((len(grid), 0))
+    traj = getattr(res, "_traj", None)
+    Y = getattr(traj, "Y", None)
+    if columns is not None and isinstance(Y, np.ndarray) and Y.ndim == 2 and len(columns) == len(labels):
+        return np.array(Y[rows][:, columns], dtype=float)
     return np.column_stack([np.asarray(res[lab.signal], float)[rows] for lab in labels])
 
 
@@ -183,11 +241,18 @@ class Estimate:
     t: float
 
 
-def compare_runs(a, b, labels, grid) -> Estimate:
+def compare_runs(a, b, labels, grid, columns=None) -> Estimate:
     """Scaled largest difference of the state signals of two results (scales from ``b``)."""
     if not labels:
         return Estimate(0.0, "", "", "", float(grid[-1]))
-    va, vb = state_matrix(a, labels, grid), state_matrix(b, labels, grid)
+    return compare_states(state_matrix(a, labels, grid, columns), state_matrix(b, labels, grid, columns), labels,
+                          grid)
+
+
+def compare_states(va, vb, labels, grid) -> Estimate:
+    """``compare_runs`` on the state matrices (``state_matrix``) of the two runs."""
+    if not labels:
+        return Estimate(0.0, "", "", "", float(grid[-1]))
     scales = kind_scales(labels, vb)
     d = np.abs(va - vb) / scales
     if not np.all(np.isfinite(d)):
@@ -338,8 +403,8 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     atol0 = options.pop("atol", None)
     if rtol0 is not None and not (isinstance(rtol0, (int, float)) and not isinstance(rtol0, bool) and rtol0 > 0):
         raise ParameterError(f"solver '{solver}': rtol must be a positive number, got {rtol0!r}")
-    r = float(rtol0) if rtol0 is not None else accuracy * RTOL_FACTOR.get(solver, 0.01)
     c = model.compile()
+    r = float(rtol0) if rtol0 is not None else first_rtol(solver, accuracy, native_served(solver, c, options))
     # the stiffest link's round-off bounds the useful rtol (common.check_link_spread): the pair never goes
     # below it; an accuracy that would need a tighter one is refused naming the link
     floor = spread_rtol_floor(c) if options.get("stiff_check", True) else None
@@ -350,7 +415,11 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     # atol follows rtol: the solvers' default ratio 1e-2, or the ratio the user gave
     atol_ratio = ATOL_RATIO if atol0 is None else np.asarray(atol0, float) / r
     labels = result_state_labels(c)
+    columns = state_columns(c)
     grid = output_grid(t_start, t_end, dt_out)
+
+    def states(res):
+        return state_matrix(res, labels, grid, columns)
 
     def run(rt, first=False):
         at = atol_ratio * rt
@@ -360,13 +429,15 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
                                rtol=rt, atol=at, **options)
 
     loose = run(r, first=True)
+    v_loose = states(loose)
     if atol0 is None:
-        scale = motion_scale(loose, labels, grid)
+        scale = motion_scale(loose, labels, grid, v_loose)
         if scale < ATOL_RESCALE:
             # a small motion: the default atol (for a motion of about 1) would hold every state's error near
             # atol, far above the accuracy relative to the motion; the pair is run with atol scaled to it
             atol_ratio = ATOL_RATIO * scale
             loose = run(r, first=True)
+            v_loose = states(loose)
     history = []
     attempts = 0
     while True:
@@ -376,7 +447,8 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
             raise AccuracyError(_out_of_reach(solver, model, accuracy, history, r_tight, floor), accuracy=accuracy,
                                 **_worst_fields(history, floor))
         tight = run(r_tight)
-        est = compare_runs(loose, tight, labels, grid)
+        v_tight = states(tight)
+        est = compare_states(v_loose, v_tight, labels, grid)
         if est.value < round_off:
             est = dataclasses.replace(est, value=round_off)
         ev = match_events(loose.events, tight.events)
@@ -395,10 +467,11 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
                 raise AccuracyError(_out_of_reach(solver, model, accuracy, history, r_new / TIGHTEN, floor),
                                     accuracy=accuracy, **_worst_fields(history, floor))
         if r_new >= r_tight:
-            loose, r = tight, r_tight
+            loose, v_loose, r = tight, v_tight, r_tight
         else:
             r = r_new
             loose = run(r)
+            v_loose = states(loose)
     settings = {"rtol": r_tight}
     at = atol_ratio * r_tight
     settings["atol"] = float(at) if np.ndim(at) == 0 else float(np.max(at))
@@ -409,12 +482,13 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     return tight
 
 
-def motion_scale(res, labels, grid) -> float:
+def motion_scale(res, labels, grid, values=None) -> float:
     """The smallest range over the run among the kinds of state signal that move (``ATOL_SCALE_MIN`` at
-    least, 1 at most): the magnitude the absolute tolerance of the contract's runs is scaled to."""
+    least, 1 at most): the magnitude the absolute tolerance of the contract's runs is scaled to.
+    ``values``: the run's ``state_matrix``, when already at hand."""
     if not labels:
         return 1.0
-    values = state_matrix(res, labels, grid)
+    values = state_matrix(res, labels, grid) if values is None else values
     rng = np.ptp(values, axis=0)
     kinds: dict = {}
     for i, lab in enumerate(labels):
@@ -592,5 +666,5 @@ def _tried_text(tried) -> str:
                      for h, e in tried) or "none"
 
 
-__all__ = ["DEFAULT_ACCURACY", "check_accuracy", "simulate_with_accuracy", "compare_runs", "match_events",
-           "result_state_labels", "RTOL_FACTOR", "TIGHTEN", "MAX_ATTEMPTS"]
+__all__ = ["DEFAULT_ACCURACY", "check_accuracy", "simulate_with_accuracy", "compare_runs", "compare_states",
+           "match_events", "result_state_labels", "state_columns", "RTOL_FACTOR", "TIGHTEN", "MAX_ATTEMPTS"]

@@ -59,7 +59,12 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
    100 inertias they cost alike and the step counts decide (1e-6, dt_out
    1e-2: the forcing needs about 2700 expm steps, ida 0.61 s, expm 1.55 s);
    train_100 (501 output steps against 164 bounded periods): expm 0.16 s,
-   ida 0.45 s at 1e-6, and within 1.4x of ida at 1e-2;
+   ida 0.45 s at 1e-6, and within 1.4x of ida at 1e-2. When ida runs
+   natively the weight is
+   ``min(max(1, states / EXPM_STATES_REF), (states / NATIVE_EXPM_STATES)
+   ^ NATIVE_EXPM_POWER)`` instead: a native step is so cheap on models of
+   a few hundred states that ida beat expm on every measured cell of the
+   chains up to 100 inertias, and lost every one at 1000;
 4. otherwise ``ida`` (the fastest solver under the contract on every
    nonlinear case measured, stiff ones included).
 
@@ -122,6 +127,18 @@ SETTINGS = ("rtol", "atol", "h", "tol")
 #: same in both, dominates a large model's step)
 NATIVE_GAIN = 4.0
 NATIVE_GAIN_STATES = 60.0
+#: rule 3 when ida runs natively: expm when ``expm_steps(a) <= K(a) span f_bound (states / NATIVE_EXPM_STATES) ^
+#: NATIVE_EXPM_POWER``. Measured (benchmarks/results/auto_rules.md, "native ida against expm"): the 5 Hz-driven
+#: chains of 50 to 1000 inertias (100 to 2000 states), 1 s, dt_out 1e-2 and 1e-3, accuracy 1e-2, 1e-4, 1e-6, both
+#: under the contract, interleaved: native ida was faster in every cell up to 100 inertias (1.7x to 11x: at 200
+#: states its contract took 29 ms against expm's 60 ms at 1e-2, dt_out 1e-2), expm in every cell at 1000 (1.1x to
+#: 3.5x); between them the cells split at about 0.4 (400 states) and 1.1 (800 states) times ``K(a) span f_bound``
+#: expm steps, and a power law through those points (exponent log 10 / log 5) separates every measured cell within
+#: 1.6x. ``max(1, states / EXPM_STATES_REF)`` (measured with ida's Python callbacks) sent the 100-inertia chain to
+#: expm at 1e-2 to 1e-4 (2x native ida). A fit over 100 to 2000 states: larger models lean further to expm,
+#: which is where they were measured to go (10,000 inertias)
+NATIVE_EXPM_STATES = 760.0
+NATIVE_EXPM_POWER = 1.43
 
 
 @dataclass
@@ -211,7 +228,7 @@ def traits(model, t_start: float, t_end: float, dt_out: float) -> Traits:
         modes_of, f_bound = np.zeros((0, 2)), 0.0
     else:
         def modes_of():
-            return _modes(c, t_start, f_nyquist)
+            return _cached_modes(c, t_start, f_nyquist)
         # the highest natural frequency is below about twice the fastest link's local one (Gershgorin)
         f_bound = min(f_nyquist, 2.0 * link[1] / (2 * math.pi))
     steps = len(output_grid(t_start, t_end, dt_out)) - 1 + len(signal_breakpoints(model, t_start, t_end))
@@ -246,6 +263,24 @@ def _forcing_frequency(model) -> float:
             if isinstance(val, Signal):
                 f = max(f, abs(float(getattr(val, "freq_hz", 0.0) or 0.0)))
     return f
+
+
+#: modal traits kept per compiled system (a change of the model drops the compiled system, ``Model._invalidate``)
+MODES_KEPT = 8
+
+
+def _cached_modes(c, t_start, f_max):
+    """``_modes``, kept with the compiled system for its next runs: the linear form and its eigenvalues cost
+    2-5 ms on small models (``linearize``'s sparse set-up), 30-60 % of a default call that then runs ida
+    natively in 3-6 ms (inertia_ratio_1e8 at 1e-4, the chain of 10 inertias at 1e-3); the system is dropped on
+    any change of a parameter or a connection, so what is kept is never stale."""
+    kept = c.__dict__.setdefault("_auto_modes", {})
+    key = (float(t_start), float(f_max))
+    if key not in kept:
+        if len(kept) >= MODES_KEPT:
+            kept.pop(next(iter(kept)))
+        kept[key] = _modes(c, t_start, f_max)
+    return kept[key]
 
 
 def _modes(c, t_start, f_max):
@@ -287,9 +322,24 @@ def steps_per_period(accuracy: float, ida_gain: float = 1.0) -> float:
 
 
 def large_model_bound(tr: Traits, accuracy: float) -> float:
-    """Rule 3's bound of expm's steps for a model without modal traits: ``K(a) * span * f_bound *
-    max(1, states / EXPM_STATES_REF)``."""
-    return steps_per_period(accuracy, tr.step_gain()) * tr.periods_bound() * max(1.0, tr.states / EXPM_STATES_REF)
+    """Rule 3's bound of expm's steps for a model without modal traits: ``K(a) * span * f_bound * w``, with
+    ``w = max(1, states / EXPM_STATES_REF)`` (ida's Python callbacks) or, when ida runs natively, ``w =
+    min(that, (states / NATIVE_EXPM_STATES) ^ NATIVE_EXPM_POWER)`` (``native_size_weight``). Unlike rule 1's
+    native gain (``Traits.step_gain``), not withheld when ``f_bound`` is capped at the output grid's Nyquist
+    frequency: on the sine-driven chain of tests/unit/test_auto.py (fastest links near 160 Hz, output every
+    10 ms, 100 and 200 inertias) native ida took 82-206 ms against expm's 148-1541 ms at 1e-2 to 1e-6. Not
+    measured: a large, lightly damped model with modes far above that frequency (ida resolves them while they
+    ring; rule 1 covers the small ones)."""
+    weight = max(1.0, tr.states / EXPM_STATES_REF)
+    if tr.ida_gain > 1.0:
+        weight = min(weight, native_size_weight(tr.states))
+    return steps_per_period(accuracy) * tr.periods_bound() * weight
+
+
+def native_size_weight(states: int) -> float:
+    """Rule 3's weight of a native ida step against an expm step for a model of ``states`` ODE states:
+    ``(states / NATIVE_EXPM_STATES) ^ NATIVE_EXPM_POWER``."""
+    return (states / NATIVE_EXPM_STATES) ** NATIVE_EXPM_POWER
 
 
 #: what each candidate of ``choose`` is, for the reason of a fallback
@@ -320,7 +370,8 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
         out.append(("expm", f"linear with {tr.states} states (too many for the modal traits) at accuracy "
                             f"{accuracy:g}: the exact flow takes about {steps:.0f} steps, against at most "
                             f"{tr.periods_bound():.3g} periods (up to {tr.f_bound:.3g} Hz) a stepping method must "
-                            f"resolve, each of its steps costing more the larger the model"))
+                            f"resolve, each of its steps costing more the larger the model"
+                            + (" (with compiled callbacks too)" if tr.ida_gain > 1.0 else "")))
     why = "nonlinear" if not tr.linear else (
         f"linear, oscillating over {periods:.3g} periods at accuracy {accuracy:g} against about {steps:.0f} expm "
         f"steps" if periods > 0 else "linear")
