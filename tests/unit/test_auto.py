@@ -209,3 +209,21 @@ def test_rule_3_with_native_ida_weighs_its_cheap_steps():
     for states in (100, 400, 2000, 20000):
         assert auto.native_size_weight(states) <= 1.0 or states > auto.EXPM_STATES_REF
     assert auto.native_size_weight(200) < 0.2 < 3.5 < auto.native_size_weight(2000) < 10.0
+
+
+def test_auto_falls_back_to_radau_when_expm_and_ida_meet_their_round_off_floor():
+    """inertia_ratio_1e8 at accuracy 1e-6: expm's a-priori round-off bound (8.9e-7 against a/3) and ida's
+    rtol floor (2.2e-9 for its 3e4 link spread) refuse it; auto used to stop there, although Radau meets it."""
+    from regmech.bench.hard import CI, all_cases
+    hc = [h for h in all_cases() if h.key == "inertia_ratio_1e8"][0]
+    res = hc.build(CI)[0].simulate(hc.t_end[CI], dt_out=hc.dt_out[CI], accuracy=1e-6)
+    assert res.stats.solver == "scipy:Radau"
+    assert res.stats.error_estimate <= 1e-6
+    assert "fallback" in res.stats.extra["auto_reason"]
+    # and the answer is that accurate against the exact flow (the measure: error over the range of its kind)
+    from regmech.bench.hard_models import inertia_ratio_chain
+    chain, _ = inertia_ratio_chain()
+    x, v = chain.exact(res.t, digits=30)
+    err = max(np.max(np.abs(res[f"{nm}.w"] - v[:, i])) for i, nm in enumerate(chain.names))
+    span = max(np.ptp(v[:, i]) for i in range(len(chain.names)))
+    assert err <= 1e-6 * span, err / span
