@@ -456,3 +456,71 @@ def test_ida_locates_a_stick_after_a_friction_knee_inside_one_step(rtol):
     w2 = np.where(res.t[before] <= a.t[-1], a.sol(np.minimum(res.t[before], a.t[-1]))[1],
                   b.sol(np.maximum(res.t[before], a.t[-1]))[1])
     assert np.abs(res["J2.w"][before] - w2).max() <= 1e4 * rtol * np.ptp(w2)
+
+
+def _check_rolling_gears(monkeypatch, bad):
+    """Wrap ``ModeLogic.settle``: after every event, each rolling lossy gear (or planetary) must roll the way its
+    speed goes (or, at zero speed, the way it accelerates) on the driving side its own ``tau_eta`` says, beyond
+    round-off; violations go into ``bad``."""
+    from regmech.hybrid.logic import ModeLogic
+    from regmech.modes import BACKWARD, FORWARD
+    settle = ModeLogic.settle
+
+    def checked(self, t, state, modes, crossed=None, initial=False):
+        y, yp, new, changes = settle(self, t, state, modes, crossed, initial)
+        x, v, a, lam, z = self.c.unpack(y, yp)
+        w, arel = self.w_rel(v), self.w_rel(a)
+        scale = 1e-9 * max(1.0, float(np.abs(v).max()))
+        a_tol = 1e-9 * max(1.0, float(np.abs(a).max()))
+        for j, dev in enumerate(self.devices):
+            if not dev.coupled or new[j] not in (FORWARD, BACKWARD):
+                continue
+            own, cpl = lam[self.offset + j], lam[self.coupled[j]]
+            te = dev.tau_eta(int(new[j]), abs(w[j]), own, cpl)
+            if self.quadrant[j] * te < -1e-9 * max(1.0, abs(own), abs(cpl)):
+                bad.append((round(t, 7), dev.name, "side", int(self.quadrant[j]), float(te)))
+            if new[j] * w[j] < -scale or (abs(w[j]) <= scale and new[j] * arel[j] < -a_tol):
+                bad.append((round(t, 7), dev.name, "direction", int(new[j]), float(w[j]), float(arel[j])))
+        return y, yp, new, changes
+    monkeypatch.setattr(ModeLogic, "settle", checked)
+
+
+@pytest.mark.parametrize("solver", ["scipy:DOP853", "ida"])
+def test_gear_side_is_decided_on_the_torques_of_its_own_pass(solver, monkeypatch):
+    """Seed 353 of the 500-model campaign: at t = 0.145393 s a clutch's slip reverses next to a backward-rolling
+    lossy gear (ratio -0.2738). In the mode logic's first pass the clutch broke away forward and, in the same
+    pass, the gear's driving side was tested with the torques solved while the clutch was still stuck
+    (tau_eta -17.1 N m): it flipped, and the flip was booked under the clutch's new mode, so the flip back on the
+    next pass's torques (tau_eta +0.354 N m, the side it had) was refused. The gear rolled on the wrong law until
+    the next time event (0.1492 s): DOP853 at rtol 1e-10 showed it supplying 0.0145 W, and ida (whose residual
+    takes the law by the sign of tau_eta) and DOP853 parted by 6.5e-4 of the range of J5.w. Fixed in
+    ``hybrid.logic.settle``: a gear's side is tested only in a pass whose torques belong to its modes."""
+    from regmech.bench.fuzz import generate_seed
+    spec = generate_seed(353, families=FAMILIES_BEFORE_17)
+    bad = []
+    _check_rolling_gears(monkeypatch, bad)
+    res = spec.build().simulate(0.16, dt_out=spec.dt_out, solver=solver, rtol=1e-10)
+    assert bad == []
+    p = res["lgear1.power"]
+    assert p.min() >= -1e-9 * np.abs(p).max(), (p.min(), res.t[np.argmin(p)])
+    assert not [e for e in res.events if e.component == "lgear1" and e.t > 0.14]     # no side change there
+
+
+def test_gears_breaking_away_together_roll_with_their_accelerations(monkeypatch):
+    """Seed 454 of the 500-model campaign: at t = 0 a lossy planetary and a lossy gear (ratio -2.258) on one load
+    path start at rest and both break away backward in the mode logic's first pass; under the planetary's
+    backward law the gear then accelerates forward (4.16 rad/s^2) while rolling Backward. Its event function
+    (mode * w) started at zero and fell, so it never fired: on every solver the gear supplied power (to 0.0103 W
+    at rtol 1e-10) for 0.148 s. The rule that re-sticks a friction device sliding at zero slip against its
+    acceleration (seed 37) excluded the gears; it now covers them (and ``_check_sliding_sides`` refuses a
+    rolling gear moving against its mode)."""
+    from regmech.bench.fuzz import generate_seed
+    spec = generate_seed(454, families=FAMILIES_BEFORE_17)
+    bad = []
+    _check_rolling_gears(monkeypatch, bad)
+    res = spec.build().simulate(0.05, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-10)
+    assert bad == []
+    for name in ("lgear1", "lplanet1"):
+        p = res[f"{name}.power"]
+        assert p.min() >= -1e-9 * max(1e-3, np.abs(p).max()), (name, p.min(), res.t[np.argmin(p)])
+    assert res["lgear1.mode"][1] * res["lgear1.flange_a.w"][1] > 0
