@@ -524,3 +524,30 @@ def test_gears_breaking_away_together_roll_with_their_accelerations(monkeypatch)
         p = res[f"{name}.power"]
         assert p.min() >= -1e-9 * max(1e-3, np.abs(p).max()), (name, p.min(), res.t[np.argmin(p)])
     assert res["lgear1.mode"][1] * res["lgear1.flange_a.w"][1] > 0
+
+
+def test_speed_source_with_a_callable_reference_at_a_tight_tolerance():
+    """CI seed 2002 of the fuzz suite: one inertia driven by a Speed source whose reference is a Python callable.
+    Its acceleration comes from finite differences of the callable (5e-11 rad/s^2 of round-off on 18 rad/s);
+    IDA at rtol 1e-10 asked the dummy acceleration and the source's torque for 5e-12 and halved its steps on
+    the noise until max_steps (410,000 evaluations). Decision: not a refusal (the user's model is fine and a
+    callable is a documented way to give a reference) but error weights that do not ask those unknowns for
+    more than the derivative's round-off (``Signal.derivative_noise``, ``ida._atol_vector``). The torque is
+    then J w_ref' within that round-off."""
+    def w_ref(t):
+        return -18.26 - 0.4406 * (1.0 - math.exp(-t / 0.08126))
+    m = rm.Model("callable_speed")
+    J1 = m.add(Inertia("J1", J=4.515))
+    motor = m.add(Speed("motor1", w_ref=w_ref))
+    m.connect(motor.flange, J1.flange_b)
+    res = m.simulate(0.6314, dt_out=0.0015785, solver="ida", rtol=1e-10)
+    assert res.stats.rhs_calls < 20_000
+    exact = -0.4406 * np.exp(-res.t / 0.08126) / 0.08126
+    assert np.abs(res["J1.w"] - np.array([w_ref(t) for t in res.t])).max() < 1e-9
+    assert np.abs(res["J1.a"] - exact).max() < 1e-7 * np.abs(exact).max()
+    # the bound holds for the derivative the residual uses
+    from regmech.signals import Function
+    f = Function(w_ref)
+    ts = np.linspace(0.0, 0.6, 301)
+    assert max(abs(f.derivative(t) - (-0.4406 * math.exp(-t / 0.08126) / 0.08126)) - f.derivative_noise(t)
+               for t in ts) <= 1e-12

@@ -1018,7 +1018,15 @@ def integrate(t, y):
     Richardson: on each smooth piece (an event instant appears twice in the grid) the cumulative rule
     at h is compared with the rule on every other point at the shared instants, ``|C_h - C_2h| / 3``,
     its largest value per piece summed over the pieces (the error at an instant inside a run can
-    exceed the error of the whole, where oscillating errors cancel)."""
+    exceed the error of the whole, where oscillating errors cancel).
+
+    Richardson assumes an integrand smooth on the grid's scale. A kink between two rows (the power of a
+    backlash at each contact, which no event marks) breaks that: the rule's error there is up to
+    ``h^2 |jump of y'| / 8`` whatever the step, the same for the rule at 2h, and their difference says
+    little. On fuzz seed 228 (a 0.2 kg mass rattling in an undamped backlash, power up to 1.3e5 W) the
+    estimate was 3.9 J for an error of 42.7 J, and the books were open by it. So each row where the slope of
+    ``y`` changes by more than twice its change at both neighbours (smooth curvature varies slowly between
+    rows) counts as a kink and adds that bound (``_kink_bound``): 146 J there; nothing on a smooth integrand."""
     t = np.asarray(t, float)
     y = np.asarray(y, float)
     inc = np.concatenate([[0.0], np.diff(t) * (y[1:] + y[:-1]) / 2])
@@ -1031,8 +1039,22 @@ def integrate(t, y):
         fine = cum[a:b:2] - cum[a]
         t2, y2 = ts[::2], ys[::2]
         coarse = np.concatenate([[0.0], np.cumsum(np.diff(t2) * (y2[1:] + y2[:-1]) / 2)])
-        err += float(np.max(np.abs(fine - coarse))) / 3.0
+        err += float(np.max(np.abs(fine - coarse))) / 3.0 + _kink_bound(ts, ys)
     return cum, err
+
+
+def _kink_bound(t, y):
+    """Bound of the trapezoid rule's error at the kinks of ``y`` on one smooth piece of the grid (``integrate``):
+    ``sum h^2 |slope change| / 8`` over the rows whose slope change exceeds twice that of both neighbours."""
+    h = np.diff(t)
+    if len(h) < 2:
+        return 0.0
+    slope = np.diff(y) / np.where(h > 0, h, 1.0)
+    jump = np.abs(np.diff(slope))                     # at rows 1 .. n-2
+    pad = np.concatenate([[0.0], jump, [0.0]])
+    kink = (jump > 2.0 * pad[:-2]) & (jump > 2.0 * pad[2:])
+    step = np.maximum(h[:-1], h[1:])
+    return float(np.sum(jump[kink] * step[kink] ** 2)) / 8.0
 
 
 def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> list[Finding]:
