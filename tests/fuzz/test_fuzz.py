@@ -61,13 +61,11 @@ SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "r
 #: seeds of the CI set with findings that are still open (strict xfail: a fix turns them into failures to
 #: unmark); each is listed in benchmarks/results/fuzz.md's open causes
 OPEN = {
-    2002: "open: IDA at rtol 1e-10 cannot follow a Speed source whose reference is a Python callable (its "
-          "derivative, taken by finite differences, is noisy beyond the tolerance): max_steps after 300,000 "
-          "evaluations on a single driven inertia",
-    4004: "open: IDA needs more than 300,000 evaluations (the CI work budget) on two wheels with mu-table road "
-          "contacts, a position servo and a mu-table clutch",
-    9005: "open: range-accuracy on a slow signal (a speed varying by 1.25e-3 about 7.18 rad/s; the claim, relative to "
-          "the signal's range, is the campaign's known class, seeds 34/160/221)",
+    4004: "open: IDA needs more than 300,000 evaluations (the CI work budget) on two wheels with road contacts, a "
+          "position servo and a mu-table clutch: from t = 0.21 s, with no event, it fails its tests at "
+          "almost every step (rtol 1e-8 to 0.3 s: 192,915 evaluations, 122,079 Jacobians; rtol 1e-10: 6,411; "
+          "max_order=3: 3,683, so most likely BDF orders 4-5 unstable on this motion's modes); see "
+          "benchmarks/results/fuzz.md",
 }
 
 

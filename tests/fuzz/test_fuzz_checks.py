@@ -227,3 +227,67 @@ def test_a_disagreement_that_shrinks_with_the_tolerance_on_one_path_is_an_accura
     off = 5e-6 * np.ptp(res["dop853_ref"]["J.phi"])      # 25 times their claims, a fifth of the loose runs
     found = kinds(dict(res, dop853_ref=_Tampered(res["dop853_ref"], **{"J.phi": res["dop853_ref"]["J.phi"] + off})))
     assert found["ida_ref/dop853_ref"] == "disagreement"
+
+
+def test_range_accuracy_is_asked_only_of_runs_that_claim_the_range():
+    """CI seed 9005: a speed varying by 1.25e-3 about 7.18 rad/s; ida at rtol 1e-8 is 7.7e-8 of the value off
+    (what rtol promises) and 4.4e-4 of the range. An rtol run is held to its claim on max(range, |value|) of
+    the kind; runs that claim the range itself (a fixed-step estimate ``tol``, the accuracy contract) are held
+    to that, and a planted shortfall of theirs is still found."""
+    m = rm.Model("slow")
+    drive = m.add(rm.components.Torque("drive", tau=rm.signals.Sine(amplitude=0.04, freq_hz=14.0)))
+    J = m.add(rm.components.Inertia("J", J=7.4, w0=-7.18))
+    m.connect(drive.flange, J.flange_a)
+    spec = ModelSpec("slow", [], 0.5, 1e-3, [])
+    res = m.simulate(0.5, dt_out=1e-3, rtol=1e-10, solver="ida")
+    rng = float(np.ptp(res["J.w"]))
+    off = _Tampered(res, **{"J.w": res["J.w"] + 0.01 * rng * np.sin(40 * res.t)})     # 1e-2 of the range
+    rtol_runs = [fuzz.RunOutcome("a", "ida", {"rtol": 1e-8}, "ok", claim_rel=1e-4),
+                 fuzz.RunOutcome("b", "ida", {"rtol": 1e-10}, "ok", claim_rel=1e-6)]
+    assert agreement(rtol_runs, {"a": off, "b": res}, m, spec) == []
+    range_runs = [fuzz.RunOutcome("a", "rk4", {"tol": 1e-4}, "ok", claim_rel=1e-4),
+                  fuzz.RunOutcome("b", "rk4", {"tol": 1e-6}, "ok", claim_rel=1e-6)]
+    found = agreement(range_runs, {"a": off, "b": res}, m, spec)
+    assert [f.kind for f in found] == ["range-accuracy"] and "J.w" in found[0].detail
+    # beyond the value-relative claim, an rtol pair is a disagreement as before
+    far = _Tampered(res, **{"J.w": res["J.w"] + 1e-3})
+    assert [f.kind for f in agreement(rtol_runs, {"a": far, "b": res}, m, spec)] in (["disagreement"], ["wrong-answer"])
+
+
+def test_energy_checks_on_a_model_at_rest_judge_round_off_by_the_claims_absolute_part():
+    """Fuzz seed 289 of the 500-model campaign: a model held at rest (speeds of 1e-35 rad/s, a shaft carrying
+    0.24 N m); the default call's powers are round-off, 3e-52 W, and the power balance, the books and a lossy
+    planetary's sign were judged relative to a power scale made of that round-off (findings at "1 of the power
+    scale"). The contract's claim now has the absolute part of its measure (``richardson.ABSOLUTE_FLOOR`` times
+    the accuracy); a loss element that supplies a nanowatt is still found."""
+    from regmech.bench.fuzz import FAMILIES_BEFORE_17, claimed_error
+    spec = generate_seed(289, families=FAMILIES_BEFORE_17)
+    m = spec.build()
+    res = m.simulate(spec.t_end, dt_out=spec.dt_out)
+    rel, ab = claimed_error("default", "auto", {}, res)
+    assert ab > 0.0
+    assert energy_checks(res, m, "default", rel=rel, abs_speed=ab) == []
+    bad = _Tampered(res, **{"lplanet1.power": res["lplanet1.power"] - 1e-9})
+    found = energy_checks(bad, m, "default", rel=rel, abs_speed=ab)
+    assert "loss-supplies-power" in {f.kind for f in found} and any("lplanet1" in f.detail for f in found)
+
+
+def test_integrate_bounds_its_error_at_kinks_and_the_books_still_catch_a_fault():
+    """Fuzz seed 228 of the 500-model campaign: an undamped backlash's power, kinked at every contact (no event
+    marks them), integrated by the trapezoid rule on the output grid: the Richardson estimate said 3.9 J for an
+    error of 42.7 J and the books were open by the quadrature alone. ``integrate`` now adds a bound at the
+    kinks; on a smooth integrand it adds nothing. Reproduced on |sin|, whose exact integral is known."""
+    t = np.linspace(0.0, 1.0, 201)
+    cum, err = integrate(t, np.abs(np.sin(37.0 * t)))
+    exact = (2.0 * math.floor(37.0 / math.pi) + 1.0 - math.cos(37.0 - math.pi * math.floor(37.0 / math.pi))) / 37.0
+    true = abs(cum[-1] - exact)
+    assert true > 4 * 1.6e-4          # the Richardson part alone (1.5e-4) is far below the error
+    assert true <= err <= 5 * true
+    tt = np.linspace(0.0, 2 * np.pi, 61)
+    smooth = integrate(tt, np.cos(5 * tt))[1]
+    assert fuzz._kink_bound(tt, np.cos(5 * tt)) == 0.0 and smooth < 0.01
+    # the books with the kinked power still catch a damper that gives back 1 % of what it absorbs
+    m = _damped_model()
+    res = m.simulate(2.0, dt_out=1e-3, rtol=1e-8, solver="ida")
+    bad = _Tampered(res, **{"damper.power": 0.99 * res["damper.power"]})
+    assert "energy-books" in {f.kind for f in energy_checks(bad, m, "ida", rel=1e-4)}

@@ -973,11 +973,18 @@ def claimed_error(label, solver, options, res) -> tuple[float, float]:
     accuracy contract's ``res.stats.error_estimate`` once every solver reports one.
     """
     est = getattr(res.stats, "error_estimate", None)
+    # a claim on the range of a kind (the accuracy contract, a fixed-step estimate) is measured with
+    # ``richardson.kind_scales``, whose scale is never below ABSOLUTE_FLOOR: that is its absolute part. Without
+    # it a model at rest had no absolute tolerance at all, and its round-off (powers of 3e-52 W, fuzz seed 289)
+    # was judged relative to a power scale made of that round-off
+    from ..solvers.richardson import ABSOLUTE_FLOOR
     if label in CONTRACT_RUNS:
         from ..solvers.accuracy import DEFAULT_ACCURACY
-        return float(options.get("accuracy", DEFAULT_ACCURACY)), 0.0
+        acc = float(options.get("accuracy", DEFAULT_ACCURACY))
+        return acc, acc * ABSOLUTE_FLOOR
     if "tol" in options and est is not None:
-        return max(float(options["tol"]), float(est)), 0.0
+        claim = max(float(options["tol"]), float(est))
+        return claim, claim * ABSOLUTE_FLOOR
     rtol = float(options.get("rtol", 1e-6))
     atol = float(options.get("atol", rtol * 1e-2))
     return CLAIM_PER_RTOL * rtol, ABS_CLAIM * atol
@@ -1011,7 +1018,15 @@ def integrate(t, y):
     Richardson: on each smooth piece (an event instant appears twice in the grid) the cumulative rule
     at h is compared with the rule on every other point at the shared instants, ``|C_h - C_2h| / 3``,
     its largest value per piece summed over the pieces (the error at an instant inside a run can
-    exceed the error of the whole, where oscillating errors cancel)."""
+    exceed the error of the whole, where oscillating errors cancel).
+
+    Richardson assumes an integrand smooth on the grid's scale. A kink between two rows (the power of a
+    backlash at each contact, which no event marks) breaks that: the rule's error there is up to
+    ``h^2 |jump of y'| / 8`` whatever the step, the same for the rule at 2h, and their difference says
+    little. On fuzz seed 228 (a 0.2 kg mass rattling in an undamped backlash, power up to 1.3e5 W) the
+    estimate was 3.9 J for an error of 42.7 J, and the books were open by it. So each row where the slope of
+    ``y`` changes by more than twice its change at both neighbours (smooth curvature varies slowly between
+    rows) counts as a kink and adds that bound (``_kink_bound``): 146 J there; nothing on a smooth integrand."""
     t = np.asarray(t, float)
     y = np.asarray(y, float)
     inc = np.concatenate([[0.0], np.diff(t) * (y[1:] + y[:-1]) / 2])
@@ -1024,8 +1039,22 @@ def integrate(t, y):
         fine = cum[a:b:2] - cum[a]
         t2, y2 = ts[::2], ys[::2]
         coarse = np.concatenate([[0.0], np.cumsum(np.diff(t2) * (y2[1:] + y2[:-1]) / 2)])
-        err += float(np.max(np.abs(fine - coarse))) / 3.0
+        err += float(np.max(np.abs(fine - coarse))) / 3.0 + _kink_bound(ts, ys)
     return cum, err
+
+
+def _kink_bound(t, y):
+    """Bound of the trapezoid rule's error at the kinks of ``y`` on one smooth piece of the grid (``integrate``):
+    ``sum h^2 |slope change| / 8`` over the rows whose slope change exceeds twice that of both neighbours."""
+    h = np.diff(t)
+    if len(h) < 2:
+        return 0.0
+    slope = np.diff(y) / np.where(h > 0, h, 1.0)
+    jump = np.abs(np.diff(slope))                     # at rows 1 .. n-2
+    pad = np.concatenate([[0.0], jump, [0.0]])
+    kink = (jump > 2.0 * pad[:-2]) & (jump > 2.0 * pad[2:])
+    step = np.maximum(h[:-1], h[1:])
+    return float(np.sum(jump[kink] * step[kink] ** 2)) / 8.0
 
 
 def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> list[Finding]:
@@ -1181,6 +1210,12 @@ def motion_signals(model):
     return kinds
 
 
+def range_claim(outcome) -> bool:
+    """True when the run's claim is on the range of a kind (``claimed_error``): the accuracy contract's runs
+    and fixed-step runs with an error estimate; False for an adaptive run's stand-in claim from its rtol."""
+    return outcome.label in CONTRACT_RUNS or "tol" in outcome.options or "accuracy" in outcome.options
+
+
 def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
     """Every pair of runs that returned must agree within the sum of their claims (``claimed_error``).
 
@@ -1192,7 +1227,13 @@ def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
       ``GROSS`` times that (one of the answers is plainly wrong, not merely less accurate than claimed);
     * ``range-accuracy``: within that but beyond the same bound on the *range* of the kind alone (the
       measure of the accuracy contract and of ``richardson``): a signal that varies little about a large
-      value is less accurate than its variation needs.
+      value is less accurate than its variation needs. Only for a pair of runs that both claim accuracy on
+      that measure (``range_claim``: a fixed-step run's estimate, the accuracy contract). An ``rtol`` run
+      promises a local error relative to the values (``rtol |y| + atol``), which the ``disagreement`` scale
+      checks: on a kind that varies little about a large value it is right and yet short of the range (CI
+      seed 9005: J1.w varies by 1.25e-3 about 7.18 rad/s; ida at rtol 1e-8 is 7.7e-8 of the value off, 4.4e-4
+      of the range; the default call, which promises the range, meets it). The range is what ``accuracy=``
+      promises, and ``default_accuracy`` holds the default call to it.
 
     A ``disagreement`` that the runs at the other tolerance level show to be convergent
     (``_convergent``) is reported as ``convergent-accuracy`` instead.
@@ -1248,7 +1289,7 @@ def agreement(outcomes, results, model, spec, pairs=None) -> list[Finding]:
                     if why:
                         kind, info = "convergent-accuracy", f"{info}; {why}"
                 findings.append(Finding(kind, info, f"{a.label}/{b.label}", info.split(":")[0]))
-            elif worst["range"][0] > 1.0:
+            elif worst["range"][0] > 1.0 and range_claim(a) and range_claim(b):
                 info = worst["range"][1]
                 findings.append(Finding("range-accuracy", info, f"{a.label}/{b.label}", info.split(":")[0]))
     return findings

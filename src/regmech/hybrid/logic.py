@@ -169,8 +169,13 @@ class ModeLogic:
                         if d:
                             new[j] = d
                             changed = True
-                    elif new[j] in (FORWARD, BACKWARD) and \
+                    elif new[j] in (FORWARD, BACKWARD) and not changed and \
                             self._fix_quadrant(j, dev, new, t, x, v, z, a, lam, dz):
+                        # (only while ``new`` is still the set this pass's torques were solved with: after an
+                        # earlier device of the pass changed, the torques are stale, and a flip decided on
+                        # them was booked under the changed set, which barred the flip back: fuzz seeds 353
+                        # and 454, a clutch breaking away in the same pass, the gear rolling on the wrong
+                        # side and supplying power until the next event)
                         changed = True
                     continue
                 if new[j] != STUCK:
@@ -186,8 +191,8 @@ class ModeLogic:
                         and not dev.one_way:
                     new[j] = BACKWARD
                     changed = True
-            # a device sliding at zero slip must leave zero in its own direction under the modes now
-            # chosen. Several break-aways in one pass change each other's loads: on fuzz seed 37 a
+            # a device sliding (or a lossy gear rolling, fuzz seed 454) at zero slip must leave zero in its
+            # own direction under the modes now chosen. Several break-aways in one pass change each other's loads: on fuzz seed 37 a
             # limited-slip lock broke away backward while a clutch and a bearing on its load path broke
             # away too, after which the lock's relative acceleration was forward. Kept sliding, its
             # friction would drive the motion and its event function (mode * w_rel, starting at zero)
@@ -255,7 +260,8 @@ class ModeLogic:
                    for j, dev in enumerate(self.devices))
 
     def _check_sliding_sides(self, t, y, yp, modes, scale):
-        """Refuse a restart with a device sliding against its own direction beyond round-off.
+        """Refuse a restart with a device sliding (or a lossy gear rolling) against its own direction beyond
+        round-off.
 
         Its kinetic torque would then drive the motion (a friction element supplying power) and its
         event function, already past zero, would never fire: the run would go on silently wrong (fuzz

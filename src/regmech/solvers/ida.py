@@ -199,13 +199,19 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
     # IDA's step count: scikit-sundae reports only nfev and njev, so the steps are counted here as the
     # distinct times of the residual calls (each attempted step evaluates at its new time; Newton
     # iterations and Jacobian differences repeat that time; no initial-condition solve runs here)
-    attempts = [None, 0]
+    # The last few distinct times also bound the step on which a root was found (``_relocate_root``): the
+    # latest is its end, the latest before the root its start (a rejected attempt lies beyond the end).
+    attempts = [None, 0, []]
     uncounted = resfn
 
     def resfn(t, y, yp, res):
         if t != attempts[0]:
             attempts[0] = t
             attempts[1] += 1
+            recent = attempts[2]
+            recent.append(t)
+            if len(recent) > RECENT_TIMES:
+                del recent[0]
         uncounted(t, y, yp, res)
 
     alg = c.algebraic if order.perm is None else np.sort(order.inv[c.algebraic])
@@ -246,6 +252,17 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
         solver = sksundae.ida.IDA(resfn, **opts)
     solver.regmech_attempts = attempts
     return solver
+
+
+#: distinct residual times kept per solver (``_make_solver``): enough to see past a few rejected attempts
+RECENT_TIMES = 8
+#: a root is located again when the step that crossed it put the law's accelerations at the root this many
+#: times the speed tolerance (per unit step) away from the step's own (``_law_mismatch``)
+RELOCATE_MISMATCH = 10.0
+#: the re-integration's largest step, as a fraction of the step that crossed the root
+RELOCATE_SHRINK = 8.0
+#: most re-integrations per root (``_relocate_root``)
+RELOCATE_ROUNDS = 3
 
 
 #: signal classes whose value is a function of time and of their (scalar) attributes alone
@@ -520,7 +537,19 @@ def _rescaled_atol(c, Y, rtol, atol):
     return tol, factors
 
 
-def _atol_vector(c, atol, y, yp, k_max, kind_atol=None):
+def _reference_noise(c, t):
+    """The round-off [m/s^2 or rad/s^2] in the accelerations that prescribed motions impose at t: their references'
+    derivatives taken by finite differences (a Python callable: ``Signal.derivative_noise``), 0 for the
+    analytic derivatives of regmech's own signals."""
+    noise = 0.0
+    for _, s in getattr(c, "_pos_sig", ()):
+        noise = max(noise, float(getattr(s, "derivative_noise", lambda t, k: 0.0)(t, 2)))
+    for _, s in getattr(c, "_spd_sig", ()):
+        noise = max(noise, float(getattr(s, "derivative_noise", lambda t, k: 0.0)(t, 1)))
+    return noise if np.isfinite(noise) else 0.0
+
+
+def _atol_vector(c, atol, y, yp, k_max, kind_atol=None, t=None):
     """Absolute tolerances per unknown.
 
     Positions, velocities and device states take the user's ``atol``, or
@@ -535,10 +564,15 @@ def _atol_vector(c, atol, y, yp, k_max, kind_atol=None):
     f_scale = max(1.0, float(np.abs(lam).max(initial=0.0)), float(np.abs(c.mass * a).max(initial=0.0)))
     noise = 1e3 * np.finfo(float).eps * k_max * max(1.0, float(np.abs(x).max(initial=0.0)))
     vec = np.full(c.N, float(atol)) if kind_atol is None else np.array(kind_atol, float)
-    vec[c.ilam] = atol * f_scale + noise
+    # a prescribed motion whose reference is a callable imposes accelerations known to the round-off of their
+    # finite differences only (fuzz CI seed 2002: 5e-11 rad/s^2 on a speed of 18 rad/s): the dummy accelerations
+    # and the forces made of them are not asked for more
+    ref = 0.0 if t is None else _reference_noise(c, t)
+    m_max = float(c.mass.max(initial=1.0))
+    vec[c.ilam] = atol * f_scale + noise + ref * m_max
     a_scale = max(1.0, float(np.abs(a).max(initial=0.0)))
     m_min = float(c.mass[c.mass > 0].min(initial=1.0))
-    vec[c.iad] = atol * a_scale + noise / m_min
+    vec[c.iad] = atol * a_scale + noise / m_min + ref
     return vec
 
 
@@ -582,7 +616,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     """
     with_events = bool(c.friction) and c.friction.n_events > 0
     rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
-    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol)
+    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol, t)
     if native:
         # one native solver serves every segment of the run: re-initialised (IDAReInit) with the segment's
         # tolerances, modes and event functions (its event bookkeeping is ours, see ``ida_native``)
@@ -649,6 +683,11 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         # an error line from a solve that went on (none is known to occur): not dropped silently
         warnings.warn(f"IDA reported at t={t:.9g}..{t_stop:.9g} in model '{model.name}':"
                       f"{sundials_log.said(lines)}", RuntimeWarning, stacklevel=2)
+    if sol.status == 2 and len(solver.regmech_attempts) > 2:
+        sol, record = _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, stats,
+                                     solver.regmech_attempts[2], atol_vec, deadline)
+    if len(solver.regmech_attempts) > 2:
+        solver.regmech_attempts[2].clear()
     n_rows = len(sol.t)
     # rows 1.. of the solution, all at once; the event row (status 2) is recorded by the caller, before and
     # after settling; rows beyond ``tspan`` (none in IDA's normal mode) would be kept
@@ -659,3 +698,104 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     T = np.asarray(sol.t)[keep]
     rec.add_rows(T, np.asarray(sol.y)[keep], np.asarray(sol.yp)[keep], modes, T >= t_stop)
     return sol
+
+
+def _law_mismatch(c, t_ev, y_ev, yp_ev, modes, h, rtol, atol_vec):
+    """How far the step that found a root departs from the model's law at the root: the largest difference
+    between the accelerations of the law at the root's state (``c.accelerations``, the modes before the
+    event) and the step's own (its interpolant's y'), times the step ``h``, over the speeds' tolerance
+    ``rtol |v| + atol``. About 1 or less on a step whose polynomial follows the law (its local error); far
+    more when the law changed inside the step where the step did not sample it (a friction table's knee
+    passed between two step ends, fuzz seed 346: 4e7 at rtol 1e-8)."""
+    x, v, a, lam, z = c.unpack(y_ev, yp_ev)
+    with np.errstate(all="ignore"):
+        a_law = c.accelerations(t_ev, x, v, z, modes)[0]
+        tol = rtol * np.abs(v) + (atol_vec[c.iv] if np.ndim(atol_vec) else atol_vec)
+        off = np.abs(a_law - a) * h / tol
+    return float(np.nan_to_num(off, nan=np.inf).max(initial=0.0))
+
+
+def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, stats, recent, atol_vec, deadline):
+    """A root of an event function found on a step that did not follow the law near it, found again.
+
+    Why: IDA's error test sees the law only at the step's ends (its corrector's times). A friction table
+    with a knee between those ends is invisible to it when both ends lie on the same linear piece of the
+    table: on fuzz seed 346 (a clutch whose friction falls by 66 % within |w_rel| < 0.188 rad/s) the model is
+    linear above the knee, IDA's last step ran from |w_rel| = 0.237 to w_rel = -0.447 with the table's top
+    all the way, and the stick located on that step's interpolant came 2.2 ms early, at rtol 1e-8 and 1e-10
+    alike (the ODE-form solvers have ``ode_driver._relocate`` for the same class). Detected by
+    ``_law_mismatch`` at the root; then the segment is integrated again from the last output row at or before
+    the crossing step's start (or the segment start), with steps bounded by ``1 / RELOCATE_SHRINK`` of that
+    step, up to that step's end, and the root is located on those steps (at most ``RELOCATE_ROUNDS`` times,
+    until the law is followed). The re-integration's rows replace the original ones after its start. A
+    re-integration that finds no root keeps the original (the root stands as found).
+
+    ``recent``: the last distinct times of the residual calls (``_make_solver``); returns ``(sol, record)``.
+    """
+    rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
+    best, best_record = sol, record
+    for _ in range(RELOCATE_ROUNDS):
+        t_ev = float(sol.t_events[-1])
+        ends = [s for s in recent if s >= t_ev]
+        starts = [s for s in recent if t <= s < t_ev]
+        if not ends:
+            break
+        t_b = min(max(ends), t_stop)
+        t_a = max(starts) if starts else t
+        h = t_b - t_a
+        if not h > 0 or _law_mismatch(c, t_ev, np.asarray(sol.y_events[-1]), np.asarray(sol.yp_events[-1]), modes,
+                                      h, rtol, atol_vec) <= RELOCATE_MISMATCH:
+            break
+        # restart: the last recorded output row at or before the crossing step's start, else the segment start
+        T = np.asarray(sol.t)
+        n_out = len(T) - 1                      # the last row is the root's
+        rows = [i for i in range(1, n_out) if T[i] <= t_a and record[min(i, len(record) - 1)]]
+        if rows:
+            i_r = rows[-1]
+            t_r = float(T[i_r])
+            xr, vr, ar, lamr, zr = c.unpack(np.asarray(sol.y[i_r]), np.asarray(sol.yp[i_r]))
+            y_r, yp_r = c.assemble_y(t_r, xr, vr, zr, modes)
+        else:
+            i_r, t_r, y_r, yp_r = 0, t, y, yp
+        bound = h / RELOCATE_SHRINK if not max_step else min(max_step, h / RELOCATE_SHRINK)
+        tol = 1e-12 * max(1.0, abs(t_b))
+        inner = grid[np.searchsorted(grid, t_r + tol, side="right"):np.searchsorted(grid, t_b - tol, side="left")]
+        tspan = np.concatenate([[t_r], inner, [t_b]])
+        rec2 = np.concatenate([[True], np.ones(len(inner), bool), [t_b >= t_stop]])
+        if len(tspan) == 2:
+            tspan, rec2 = np.array([t_r, 0.5 * (t_r + t_b), t_b]), np.array([True, False, t_b >= t_stop])
+        again = _make_solver(c, modes, rtol, atol_vec, linsolver, bound, max_order, True, order, max_steps,
+                             deadline)
+        with sundials_log.kept():
+            try:
+                sol2 = again.solve(tspan, order.to_solver(y_r), order.to_solver(yp_r))
+                if order.perm is not None:
+                    _unpermute(sol2, order)
+            except (RuntimeError, ValueError, KeyError):
+                break                               # the original root stands
+        stats.rhs_calls += int(getattr(sol2, "nfev", 0) or 0)
+        stats.jac_calls += int(getattr(sol2, "njev", 0) or 0)
+        stats.steps += again.regmech_attempts[1]
+        stats.extra["relocated_roots"] = stats.extra.get("relocated_roots", 0) + 1
+        if sol2.status != 2:
+            break                                   # no root up to the step's end: the original stands
+        sol = _Merged(sol, i_r, sol2)
+        record = np.concatenate([record[:i_r + 1] if len(record) > i_r else np.ones(i_r + 1, bool),
+                                 rec2[1:], np.ones(max(0, len(sol.t) - i_r - len(rec2)), bool)])[:len(sol.t)]
+        best, best_record = sol, record
+        recent, t = list(again.regmech_attempts[2]), t_r
+    return best, best_record
+
+
+class _Merged:
+    """An IDA solution made of the rows 0..i of ``first`` and the rows after the first of ``second`` (which
+    starts at row i's time), with ``second``'s status and events."""
+
+    def __init__(self, first, i, second):
+        self.t = np.concatenate([np.asarray(first.t)[:i + 1], np.asarray(second.t)[1:]])
+        self.y = np.concatenate([np.asarray(first.y)[:i + 1], np.asarray(second.y)[1:]])
+        self.yp = np.concatenate([np.asarray(first.yp)[:i + 1], np.asarray(second.yp)[1:]])
+        self.status, self.message = second.status, second.message
+        for name in ("t_events", "y_events", "yp_events", "i_events"):
+            setattr(self, name, getattr(second, name))
+        self.nfev = self.njev = 0            # counted by ``_relocate_root``
