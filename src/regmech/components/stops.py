@@ -36,6 +36,11 @@ from .friction import FrictionContact
 from .inertial import Fixed, Mass
 
 
+def _smaller(a, b):
+    """``min(a, b)`` as arithmetic (the kernels' numpy printer has no elementwise Min)."""
+    return (a + b - sympy.Abs(a - b)) / 2
+
+
 def _limited(tau_c, tau_d, pushing_up: bool):
     """``tau_c + clip(tau_d, -|tau_c|, |tau_c|)`` for a spring force of known sign (branches written out,
     so the class Jacobian is differentiated branch by branch)."""
@@ -80,6 +85,15 @@ class EndStop(Device):
         lo = _limited(self.c * (rel - self.lower), tau_d, False)
         return sympy.Piecewise((hi, rel > self.upper), (lo, rel < self.lower), (0, True))
 
+    def switching_surfaces(self, e, de):
+        """Contact at the upper stop (code +1) and at the lower one (-1): in touch and pushing,
+        ``g_upper = min(phi_rel - upper, (tau_c + d w_rel) / c)`` (the limited damper lets go where the
+        sum reaches 0 while still in touch), the mirror image at ``lower``."""
+        rel, w = e[0], de[0]
+        up = _smaller(rel - self.upper, rel - self.upper + self.d * w / self.c)
+        lo = _smaller(self.lower - rel, self.lower - rel - self.d * w / self.c)
+        return [(up, 1), (lo, -1)]
+
     def potential(self, e):
         rel = e[0]
         return sympy.Piecewise((self.c * (rel - self.upper) ** 2 / 2, rel > self.upper),
@@ -112,6 +126,12 @@ class ElastoGap(Device):
 
     def potential(self, e):
         return sympy.Piecewise((self.c * (e[0] - self.phi_rel0) ** 2 / 2, e[0] < self.phi_rel0), (0, True))
+
+    def switching_surfaces(self, e, de):
+        """Contact (code +1): the gap closed and the contact force pushing,
+        ``g = min(phi_rel0 - phi_rel, -(tau_c + d w_rel) / c)``."""
+        rel, w = e[0], de[0]
+        return [(_smaller(self.phi_rel0 - rel, self.phi_rel0 - rel - self.d * w / self.c), 1)]
 
 
 class MassWithStopAndFriction(Subsystem):
