@@ -532,6 +532,11 @@ class Device(Component):
         ``Event`` of kind "contact". Default: none (a smooth law)."""
         return []
 
+    def switching_active(self) -> bool:
+        """False when this instance's law has no kink after all (a play below ``B_EPS`` is a plain spring):
+        its surfaces are then not watched. Decided per instance from the parameters."""
+        return True
+
     # -- derived outputs: signals computed from a result, never seen by the solvers --------------
     #: extra signals ``<name>.<key>`` the device exports, key -> SI unit (e.g. a motor's electrical
     #: power ``p_el`` [W]); ``derived`` computes them

@@ -321,8 +321,10 @@ class KernelGroup:
         args = [e[self.row_index[:, r]] for r in range(tpl.k)] + \
                [de[self.row_index[:, r]] for r in range(tpl.k)] + \
                [z[self.state_index[:, s]] for s in range(len(tpl.states))]
-        out = self.call(tpl.surf_fn, args, t, left)
-        return np.array([np.broadcast_to(np.asarray(o, dtype=float), (self.n,)) for o in out]).reshape(-1, self.n)
+        res = np.empty((len(tpl.surf_codes), self.n))
+        for i, o in enumerate(self.call(tpl.surf_fn, args, t, left)):
+            res[i] = o          # numpy broadcasts a constant surface
+        return res
 
     def offsets(self, t: float, left: bool = False) -> np.ndarray:
         """Affine classes: ``[tau(0)..., dz(0)...]`` per instance, shape (k + ns, n)."""

@@ -125,8 +125,11 @@ class CompiledSystem:
         for g in self.groups:
             if g.tpl.surf_fn is None:
                 continue
-            self.surface_groups.append((g, len(self.surface_owner)))
-            self.surface_owner += [(d.name, code) for code in g.tpl.surf_codes for d in g.devices]
+            active = np.array([i for i, d in enumerate(g.devices) if d.switching_active()], dtype=int)
+            if not len(active):
+                continue
+            self.surface_groups.append((g, len(self.surface_owner), None if len(active) == g.n else active))
+            self.surface_owner += [(g.devices[i].name, code) for code in g.tpl.surf_codes for i in active]
         self.n_surf = len(self.surface_owner)
 
     def _build_layout(self):
@@ -258,8 +261,10 @@ class CompiledSystem:
         de = self.Sc @ v
         left = t >= self._t_right
         out = np.empty(self.n_surf)
-        for g, start in self.surface_groups:
+        for g, start, active in self.surface_groups:
             vals = g.surfaces(e, de, z, t, left)
+            if active is not None:
+                vals = vals[:, active]
             out[start:start + vals.size] = vals.ravel()
         return out
 

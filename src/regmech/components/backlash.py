@@ -41,12 +41,11 @@ def _smaller(a, b):
 def _play_surfaces(phi_diff, b, pos=None, neg=None):
     """The contact surfaces of a play of total width ``b`` centred at 0: ``[(g, +1), (g, -1)]`` with
     ``g+ = phi_diff - b/2`` and ``g- = -phi_diff - b/2`` (> 0 in contact on that side); ``pos``/``neg``
-    replace them where the contact also ends by a force condition. None (constant 1, never crossing)
-    for a play below ``B_EPS``, where the law has no kink."""
+    replace them where the contact also ends by a force condition. (A play below ``B_EPS`` has no kink:
+    ``switching_active`` leaves its surfaces out.)"""
     g_pos = phi_diff - b / 2 if pos is None else pos
     g_neg = -phi_diff - b / 2 if neg is None else neg
-    return [(sympy.Piecewise((1, b <= B_EPS), (g_pos, True)), 1),
-            (sympy.Piecewise((1, b <= B_EPS), (g_neg, True)), -1)]
+    return [(g_pos, 1), (g_neg, -1)]
 
 
 def _contact_spring(c, phi_diff, b_half):
@@ -83,6 +82,9 @@ class Backlash(TwoFlangeCompliant):
     def switching_surfaces(self, e, de):
         """Contact on either side of the play: ``phi_diff = +-b/2`` (codes +1, -1)."""
         return _play_surfaces(e[0] - self.phi_rel0, self.b)
+
+    def switching_active(self):
+        return self.b > B_EPS          # without play the law is one straight line: no kink
 
 
 class ElastoBacklash(TwoFlangeCompliant):
@@ -144,6 +146,9 @@ class ElastoBacklash(TwoFlangeCompliant):
         pos = _smaller(phi_diff - b_half, phi_diff - b_half + self.d * w / self.c)
         neg = _smaller(-phi_diff - b_half, -(phi_diff + b_half) - self.d * w / self.c)
         return _play_surfaces(phi_diff, self.b, pos, neg)
+
+    def switching_active(self):
+        return self.b > B_EPS          # a plain spring-damper below it
 
     def potential(self, e):
         phi_diff = e[0] - self.phi_rel0
