@@ -421,14 +421,16 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
         if sol is not None and sol.status == 2:
             t_ev = float(sol.t_events[-1])
             y_ev, yp_ev = np.array(sol.y_events[-1]), np.array(sol.yp_events[-1])
-            rec.add(t_ev, y_ev, yp_ev, modes)
             f_crossed, s_crossed = guards.split(sol.i_events[-1])
+            friction_hit = fr is not None and np.any(f_crossed)
+            if friction_hit:
+                rec.add(t_ev, y_ev, yp_ev, modes)
             if len(s_crossed):
                 # a contact (a kink of a piecewise law): the state is continuous there, so the run goes on
                 # from the event's values on the surface's other side
                 for (name, old, new, kind) in surf.cross(s_crossed):
                     events.append(Event(t_ev, name, old, new, kind))
-            if fr is not None and np.any(f_crossed):
+            if friction_hit:
                 y, yp, new_modes, changes = fr.settle(t_ev, (y_ev, yp_ev), modes, crossed=f_crossed)
                 for (name, old, new, kind) in changes:
                     events.append(Event(t_ev, name, old, new, kind))
@@ -440,6 +442,10 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 # accelerations) jump at the kink, and IDA's first predictor on the new branch needs theirs
                 x, v, a, lam, z = c.unpack(y_ev, yp_ev)
                 y, yp = c.assemble_y(t_ev, x, v, z, modes)
+                # one row: the state and (the law being continuous) the accelerations are the same on both
+                # sides; the consistent one, not IDA's interpolant, whose accelerations come from the old
+                # branch's polynomial (the power balance at the row was off by 4e-4 of its scale)
+                rec.add(t_ev, y, yp, modes)
             t = t_ev
             if len(events) > max_events:
                 raise SimulationError(f"more than {max_events} mode changes and contacts in model '{model.name}'; "
