@@ -18,8 +18,11 @@ Energy: the stored energy is ``c * penetration^2 / 2`` (exported as ``<name>.pot
 rest of the power the contact absorbs, ``clip(tau_d, ...) * w_rel``, has the sign of
 ``d w_rel^2 >= 0``: the contact never supplies energy (with ``d >= 0``).
 
-A rigid impact with a coefficient of restitution (located by events, speeds reset) is not
-provided: a stiff contact (``c`` giving a contact frequency well above the model's) with the
+Contacts are located as events (``switching_surfaces``: in touch *and* pushing, so a damped contact
+ends where its force returns to zero) and listed in ``Result.events`` with ``kind="contact"``.
+
+A rigid impact with a coefficient of restitution (speeds reset at the located contact) is not
+provided yet: a stiff contact (``c`` giving a contact frequency well above the model's) with the
 damping chosen for the wanted restitution is its compliant counterpart. For a linear
 spring-damper contact of mass ``m`` the restitution is about ``exp(-pi zeta / sqrt(1 - zeta^2))``
 with ``zeta = d / (2 sqrt(c m))`` (less when the damping limit is active at the end of contact).
