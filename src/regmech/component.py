@@ -520,6 +520,23 @@ class Device(Component):
         """Stored energy as a function of the device coordinates (0 if none)."""
         return 0
 
+    def switching_surfaces(self, e, de):
+        """The switching surfaces of a piecewise law: ``[(g, code), ...]`` (sympy-compatible, like ``laws``).
+
+        ``g(e, de)`` is continuous and changes sign where the law changes branch (a kink or a switch of
+        the force, e.g. the contact of a backlash, ``phi_diff - b/2``); ``g > 0`` on the side where the
+        device is in state ``code`` (a nonzero int such as +1 for contact at the upper side, -1 at the
+        lower), and a device whose surfaces are all negative is in state 0 (open). The device only
+        *states* its surfaces: the hybrid layer turns them into event functions that the solvers locate
+        (so no step straddles a kink) and reports each change of state in ``Result.events`` as an
+        ``Event`` of kind "contact". Default: none (a smooth law)."""
+        return []
+
+    def switching_active(self) -> bool:
+        """False when this instance's law has no kink after all (a play below ``B_EPS`` is a plain spring):
+        its surfaces are then not watched. Decided per instance from the parameters."""
+        return True
+
     # -- derived outputs: signals computed from a result, never seen by the solvers --------------
     #: extra signals ``<name>.<key>`` the device exports, key -> SI unit (e.g. a motor's electrical
     #: power ``p_el`` [W]); ``derived`` computes them

@@ -29,6 +29,7 @@ from .modes import MODE_NAMES
 
 
 DRIVING_NAMES = {1: "flange_a drives", -1: "flange_b drives"}
+CONTACT_NAMES = {0: "open", 1: "contact +", -1: "contact -"}
 
 
 @dataclass(frozen=True)
@@ -38,8 +39,11 @@ class Event:
     ``kind`` "mode": ``old_mode`` and ``new_mode`` are modes (``MODE_NAMES``). ``kind`` "driving
     side": a lossy gear (``LossyGear``, ``LossyPlanetary``) rolls on but the power now flows the
     other way, so its other efficiency applies; ``old_mode`` and ``new_mode`` are then the driving
-    flange, +1 flange_a (the sun of a planetary set), -1 flange_b (the ring). Filter on ``kind``
-    to compare mode sequences.
+    flange, +1 flange_a (the sun of a planetary set), -1 flange_b (the ring). ``kind`` "contact": a
+    device with a piecewise law (``Backlash``, ``ElastoGap``, ``EndStop``, ``HardStop``) changed its
+    contact state (``Device.switching_surfaces``): 0 open, +1 in contact on the positive side (the
+    upper stop, ``phi_rel - phi_rel0 >= b/2``), -1 on the negative side. Filter on ``kind`` to compare
+    mode sequences.
     """
 
     t: float
@@ -53,6 +57,9 @@ class Event:
 
     def __str__(self):
         err = "" if self.t_error is None else f" (+-{self.t_error:.2g} s)"
+        if self.kind == "contact":
+            return (f"t={self.t:.6g}{err}: {self.component} contact: {CONTACT_NAMES.get(self.old_mode, self.old_mode)} "
+                    f"-> {CONTACT_NAMES.get(self.new_mode, self.new_mode)}")
         if self.kind == "driving side":
             return (f"t={self.t:.6g}{err}: {self.component} driving side: "
                     f"{DRIVING_NAMES.get(self.old_mode, self.old_mode)} -> {DRIVING_NAMES.get(self.new_mode, self.new_mode)}")

@@ -271,16 +271,28 @@ def test_stable_where_rk4_diverges_on_the_excavator(excavator):
     with pytest.raises(rm.SimulationError, match="corrector='implicit'"):
         m.simulate(3.0, dt_out=0.1, solver="convolution", h=0.1, corrector="pece")
     res = m.simulate(3.0, dt_out=0.1, solver="convolution", h=0.1)
-    on_grid = np.abs(ref.t / 0.1 - np.round(ref.t / 0.1)) < 1e-9       # the event's rows lie between
-    assert np.array_equal(on_grid, np.abs(res.t / 0.1 - np.round(res.t / 0.1)) < 1e-9)
-    w, w_ref = res["turntable.w"][on_grid], ref["turntable.w"][on_grid]
-    assert np.all(np.abs(res.t[on_grid] - ref.t[on_grid]) < 1e-12)
+    # the events' rows (mode changes, and the backlash's contacts, located by each run at its own times) lie
+    # between the output instants: compare the rows on the grid
+    on_grid = np.abs(ref.t / 0.1 - np.round(ref.t / 0.1)) < 1e-9
+    on_grid_res = np.abs(res.t / 0.1 - np.round(res.t / 0.1)) < 1e-9
+    assert on_grid.sum() == on_grid_res.sum()
+    w, w_ref = res["turntable.w"][on_grid_res], ref["turntable.w"][on_grid]
+    assert np.all(np.abs(res.t[on_grid_res] - ref.t[on_grid]) < 1e-12)
     err = np.max(np.abs(w - w_ref))
     assert err < 0.05 * np.max(np.abs(w_ref)), err                  # measured 0.24 rad/s of 7.85 (3 %)
     assert abs(w[-1] - w_ref[-1]) < 0.005 * w_ref[-1]                # measured 0.013 rad/s at 3 s
-    # the turntable breaks away (the one stick/slip event) within a step of the reference
-    assert [(e.component, e.new_mode) for e in res.events] == [(e.component, e.new_mode) for e in ref.events]
-    assert abs(res.events[0].t - ref.events[0].t) < 0.01             # measured 0.0042 s
+    # the turntable breaks away (the one stick/slip event) within a step of the reference; each device's
+    # sequence of changes (the backlashes' contacts too) is the reference's (two symmetric backlashes touch
+    # at one instant, in either order)
+    def per_device(r):
+        seq = {}
+        for e in r.events:
+            seq.setdefault(e.component, []).append((e.kind, e.old_mode, e.new_mode))
+        return seq
+    assert per_device(res) == per_device(ref)
+    mode_res = [e for e in res.events if e.kind == "mode"]
+    mode_ref = [e for e in ref.events if e.kind == "mode"]
+    assert abs(mode_res[0].t - mode_ref[0].t) < 0.01             # measured 0.0042 s
 
 
 def test_an_event_on_a_breakpoint_leaves_no_empty_segment():

@@ -82,7 +82,8 @@ def msl_errors(result, spec) -> dict | None:
             worst, e_max = ours, e
     out = {"msl_max_rel": e_max, "msl_worst": worst}
     if spec.modes:
-        run_events = [(float(e.t), str(e.component), int(e.old_mode), int(e.new_mode)) for e in result.events]
+        run_events = [(float(e.t), str(e.component), int(e.old_mode), int(e.new_mode)) for e in result.events
+                      if e.kind != "contact"]
         sw = switch_time_error(run_events, mode_events(cols, spec.modes))
         out.update(msl_switch_s=sw.max_dt, msl_unmatched=sw.unmatched)
     return out

@@ -84,6 +84,10 @@ class Template:
     #: the inputs with coefficients of the parameters alone and do not use time (a Torque's ``tau(0) = tau``):
     #: the residual then multiplies the signal values themselves (``EvaluationPlan``'s input slots)
     offset_coef_fn: object = None
+    #: ``surf_fn(args...)`` -> ``[g...]``, the class's switching surfaces (``Device.switching_surfaces``), and
+    #: the state code each one stands for; None / () for a smooth law
+    surf_fn: object = None
+    surf_codes: tuple = ()
 
 
 class _KernelPrinter(NumPyPrinter):
@@ -130,7 +134,10 @@ def template_for(dev: Device) -> Template:
         taus = [sympy.sympify(x) for x in cls.laws(proxy, list(e), list(de))]
         dz = [sympy.sympify(x) for x in cls.derivatives(proxy, list(e), list(de))]
         pot = sympy.sympify(cls.potential(proxy, list(e)))
-    except (TypeError, AttributeError, sympy.SympifyError) as exc:
+        surfaces = list(cls.switching_surfaces(proxy, list(e), list(de)))
+        surf = [sympy.sympify(g) for g, _ in surfaces]
+        surf_codes = tuple(int(code) for _, code in surfaces)
+    except (TypeError, AttributeError, ValueError, sympy.SympifyError) as exc:
         raise ModelError(
             f"{cls.__name__}: its law could not be written symbolically ({exc}); laws must use arithmetic and "
             f"sympy functions (sympy.sin, sympy.Piecewise, ...) of the arguments and self.<parameter>") from exc
@@ -148,7 +155,10 @@ def template_for(dev: Device) -> Template:
             if d != 0:
                 jac_entries.append(((oname, oi), (wname, wj)))
                 jac_exprs.append(d)
-    used = set().union(*(x.free_symbols for x in taus + dz + jac_exprs + [pot])) if (taus or dz) else set()
+    if any(code == 0 for code in surf_codes):
+        raise ModelError(f"{cls.__name__}: switching_surfaces() gave a state code 0; 0 is the open state, "
+                         f"give each surface a nonzero code")
+    used = set().union(*(x.free_symbols for x in taus + dz + jac_exprs + [pot] + surf)) if (taus or dz) else set()
     params = [p for p in pnames if syms[p] in used]
     inputs = [p for p in inames if syms[p] in used]
     param_syms = [syms[p] for p in params]
@@ -172,7 +182,8 @@ def template_for(dev: Device) -> Template:
     tpl = Template(cls, k, states, params, inputs, fn, jac_entries, len(taus) + len(dz) + len(jac_exprs) + 1,
                    res_fn=_lambdify(args, taus + dz), jac_fn=_lambdify(args, jac_exprs),
                    affine=affine, offset_fn=offset_fn, offset_varies=offset_varies,
-                   offset_uses_time=offset_uses_time, offset_coef_fn=offset_coef_fn)
+                   offset_uses_time=offset_uses_time, offset_coef_fn=offset_coef_fn,
+                   surf_fn=_lambdify(args, surf) if surf else None, surf_codes=surf_codes)
     _TEMPLATES[key] = tpl
     return tpl
 
@@ -180,7 +191,7 @@ def template_for(dev: Device) -> Template:
 def _signature(tpl: Template) -> tuple:
     """What the compiled layout relies on in a template (checked when it is found again after unpickling)."""
     return (tpl.k, tuple(tpl.states), tuple(tpl.params), tuple(tpl.inputs), tuple(tpl.jac_entries), tpl.affine,
-            tpl.offset_varies, tpl.offset_uses_time)
+            tpl.offset_varies, tpl.offset_uses_time, tpl.surf_codes)
 
 
 class SignalBank:
@@ -303,6 +314,17 @@ class KernelGroup:
         The outputs may share memory with the input buffers: consume them before the next call.
         """
         return fn(*variables, *self.param_values, *self._inputs_now(t, left), t)
+
+    def surfaces(self, e: np.ndarray, de: np.ndarray, z: np.ndarray, t: float, left: bool = False) -> np.ndarray:
+        """The switching surfaces of every instance, shape (len(surf_codes), n) (``Device.switching_surfaces``)."""
+        tpl = self.tpl
+        args = [e[self.row_index[:, r]] for r in range(tpl.k)] + \
+               [de[self.row_index[:, r]] for r in range(tpl.k)] + \
+               [z[self.state_index[:, s]] for s in range(len(tpl.states))]
+        res = np.empty((len(tpl.surf_codes), self.n))
+        for i, o in enumerate(self.call(tpl.surf_fn, args, t, left)):
+            res[i] = o          # numpy broadcasts a constant surface
+        return res
 
     def offsets(self, t: float, left: bool = False) -> np.ndarray:
         """Affine classes: ``[tau(0)..., dz(0)...]`` per instance, shape (k + ns, n)."""

@@ -118,6 +118,19 @@ class CompiledSystem:
             self.groups.append(KernelGroup(tpl, devs, rows, sidx))
         self.nz = nz
         self.state_start = np.array(self.state_start, float)
+        # switching surfaces of piecewise laws (``Device.switching_surfaces``): surface k of instance i of a
+        # group is entry ``start + k * n + i``; ``surface_owner`` names its device and state code
+        self.surface_groups = []
+        self.surface_owner: list[tuple[str, int]] = []
+        for g in self.groups:
+            if g.tpl.surf_fn is None:
+                continue
+            active = np.array([i for i, d in enumerate(g.devices) if d.switching_active()], dtype=int)
+            if not len(active):
+                continue
+            self.surface_groups.append((g, len(self.surface_owner), None if len(active) == g.n else active))
+            self.surface_owner += [(g.devices[i].name, code) for code in g.tpl.surf_codes for i in active]
+        self.n_surf = len(self.surface_owner)
 
     def _build_layout(self):
         n, nd, m, nz = self.n, len(self.Dv), self.m, self.nz
@@ -239,6 +252,21 @@ class CompiledSystem:
             plan.nonlinear_weights_into(w, t, plan.ybuf, left)      # ybuf holds (x, v, z) now
             weights[~plan.weight_is_const] = w
         return e, de, tau, dz, weights
+
+    def surface_values(self, t, y):
+        """The ``n_surf`` switching surfaces at ``(t, y)`` (order of ``surface_owner``); the hybrid layer
+        turns them into event functions."""
+        x, v, z = y[self._sx], y[self._sv], y[self._sz]
+        e = self.Sc @ x + self.e0c
+        de = self.Sc @ v
+        left = t >= self._t_right
+        out = np.empty(self.n_surf)
+        for g, start, active in self.surface_groups:
+            vals = g.surfaces(e, de, z, t, left)
+            if active is not None:
+                vals = vals[:, active]
+            out[start:start + vals.size] = vals.ravel()
+        return out
 
     def residual(self, t, y, yp, res, modes=None):
         """``F(t, y, y')`` into ``res`` (see the module docstring; one matrix product, ``compile.evaluation``)."""

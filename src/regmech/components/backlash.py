@@ -13,10 +13,12 @@ transmitted torque ``tau = flange_b.tau = -flange_a.tau``. Pass
 then ``b`` is in m, ``c`` in N/m, ``d`` in N s/m).
 
 The laws are written with ``sympy.Piecewise``, so they are continuous but
-have a kink at contact (``|phi_rel - phi_rel0| = b/2``). IDA integrates the
-kink without locating it; at tight tolerances the error stays small (see
-``tests/validation/test_msl_backlash.py`` for the measured error against the
-MSL reference).
+have a kink at contact (``|phi_rel - phi_rel0| = b/2``). Both declare their
+contacts as switching surfaces (``switching_surfaces``): every solver locates
+them as events, restarts on the other branch (no step straddles the kink) and
+reports each contact change in ``Result.events`` (kind "contact": state +1 in
+contact on the positive side, ``phi_diff >= b/2``, -1 on the negative side, 0
+inside the play).
 """
 
 from __future__ import annotations
@@ -29,6 +31,21 @@ from .elastic import TwoFlangeCompliant
 #: below this total backlash [rad or m] the play is ignored (MSL ``bEps``):
 #: a vanishing dead zone would only add kinks that do nothing
 B_EPS = 1e-10
+
+
+def _smaller(a, b):
+    """``min(a, b)`` as arithmetic (the kernels' numpy printer has no elementwise Min)."""
+    return (a + b - sympy.Abs(a - b)) / 2
+
+
+def _play_surfaces(phi_diff, b, pos=None, neg=None):
+    """The contact surfaces of a play of total width ``b`` centred at 0: ``[(g, +1), (g, -1)]`` with
+    ``g+ = phi_diff - b/2`` and ``g- = -phi_diff - b/2`` (> 0 in contact on that side); ``pos``/``neg``
+    replace them where the contact also ends by a force condition. (A play below ``B_EPS`` has no kink:
+    ``switching_active`` leaves its surfaces out.)"""
+    g_pos = phi_diff - b / 2 if pos is None else pos
+    g_neg = -phi_diff - b / 2 if neg is None else neg
+    return [(g_pos, 1), (g_neg, -1)]
 
 
 def _contact_spring(c, phi_diff, b_half):
@@ -61,6 +78,13 @@ class Backlash(TwoFlangeCompliant):
     def potential(self, e):
         tau_c = _contact_spring(self.c, e[0] - self.phi_rel0, self.b / 2)
         return tau_c ** 2 / (2 * self.c)
+
+    def switching_surfaces(self, e, de):
+        """Contact on either side of the play: ``phi_diff = +-b/2`` (codes +1, -1)."""
+        return _play_surfaces(e[0] - self.phi_rel0, self.b)
+
+    def switching_active(self):
+        return self.b > B_EPS          # without play the law is one straight line: no kink
 
 
 class ElastoBacklash(TwoFlangeCompliant):
@@ -110,6 +134,21 @@ class ElastoBacklash(TwoFlangeCompliant):
                                (pushing, phi_diff > b_half),
                                (pulling, phi_diff < -b_half),
                                (0, True))
+
+    def switching_surfaces(self, e, de):
+        """Contact on either side (codes +1, -1): the flanges in touch *and* the contact torque pushing.
+        ``g+ = min(phi_diff - b/2, (tau_c + tau_d) / c)``: contact starts at ``phi_diff = b/2`` (where
+        ``tau_c = 0``) and ends either there or, with damping, where ``tau_c + tau_d`` reaches 0 while
+        still in touch (the limited damper lets go); the mirror image on the negative side."""
+        phi_diff = e[0] - self.phi_rel0
+        b_half = self.b / 2
+        w = de[0]
+        pos = _smaller(phi_diff - b_half, phi_diff - b_half + self.d * w / self.c)
+        neg = _smaller(-phi_diff - b_half, -(phi_diff + b_half) - self.d * w / self.c)
+        return _play_surfaces(phi_diff, self.b, pos, neg)
+
+    def switching_active(self):
+        return self.b > B_EPS          # a plain spring-damper below it
 
     def potential(self, e):
         phi_diff = e[0] - self.phi_rel0

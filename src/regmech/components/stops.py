@@ -18,8 +18,11 @@ Energy: the stored energy is ``c * penetration^2 / 2`` (exported as ``<name>.pot
 rest of the power the contact absorbs, ``clip(tau_d, ...) * w_rel``, has the sign of
 ``d w_rel^2 >= 0``: the contact never supplies energy (with ``d >= 0``).
 
-A rigid impact with a coefficient of restitution (located by events, speeds reset) is not
-provided: a stiff contact (``c`` giving a contact frequency well above the model's) with the
+Contacts are located as events (``switching_surfaces``: in touch *and* pushing, so a damped contact
+ends where its force returns to zero) and listed in ``Result.events`` with ``kind="contact"``.
+
+A rigid impact with a coefficient of restitution (speeds reset at the located contact) is not
+provided yet: a stiff contact (``c`` giving a contact frequency well above the model's) with the
 damping chosen for the wanted restitution is its compliant counterpart. For a linear
 spring-damper contact of mass ``m`` the restitution is about ``exp(-pi zeta / sqrt(1 - zeta^2))``
 with ``zeta = d / (2 sqrt(c m))`` (less when the damping limit is active at the end of contact).
@@ -34,6 +37,11 @@ from ..errors import ParameterError
 from ..ports import TRANSLATIONAL
 from .friction import FrictionContact
 from .inertial import Fixed, Mass
+
+
+def _smaller(a, b):
+    """``min(a, b)`` as arithmetic (the kernels' numpy printer has no elementwise Min)."""
+    return (a + b - sympy.Abs(a - b)) / 2
 
 
 def _limited(tau_c, tau_d, pushing_up: bool):
@@ -80,6 +88,15 @@ class EndStop(Device):
         lo = _limited(self.c * (rel - self.lower), tau_d, False)
         return sympy.Piecewise((hi, rel > self.upper), (lo, rel < self.lower), (0, True))
 
+    def switching_surfaces(self, e, de):
+        """Contact at the upper stop (code +1) and at the lower one (-1): in touch and pushing,
+        ``g_upper = min(phi_rel - upper, (tau_c + d w_rel) / c)`` (the limited damper lets go where the
+        sum reaches 0 while still in touch), the mirror image at ``lower``."""
+        rel, w = e[0], de[0]
+        up = _smaller(rel - self.upper, rel - self.upper + self.d * w / self.c)
+        lo = _smaller(self.lower - rel, self.lower - rel - self.d * w / self.c)
+        return [(up, 1), (lo, -1)]
+
     def potential(self, e):
         rel = e[0]
         return sympy.Piecewise((self.c * (rel - self.upper) ** 2 / 2, rel > self.upper),
@@ -112,6 +129,12 @@ class ElastoGap(Device):
 
     def potential(self, e):
         return sympy.Piecewise((self.c * (e[0] - self.phi_rel0) ** 2 / 2, e[0] < self.phi_rel0), (0, True))
+
+    def switching_surfaces(self, e, de):
+        """Contact (code +1): the gap closed and the contact force pushing,
+        ``g = min(phi_rel0 - phi_rel, -(tau_c + d w_rel) / c)``."""
+        rel, w = e[0], de[0]
+        return [(_smaller(self.phi_rel0 - rel, self.phi_rel0 - rel - self.d * w / self.c), 1)]
 
 
 class MassWithStopAndFriction(Subsystem):

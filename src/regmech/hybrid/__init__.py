@@ -3,7 +3,8 @@
 It sits between ``compile`` (the DAE and its friction rows in given modes) and ``solvers`` (which
 drive time): the event functions the solvers watch (``events``), the iteration of the modes at an
 event (``logic``) with the holding torques of stuck devices (``holding``) and the driving sides
-of lossy gears (``gears``), and the guard against chattering (``chatter``). Components state only
+of lossy gears (``gears``), the guard against chattering (``chatter``), and the switching surfaces
+of piecewise laws (contacts of backlash, gaps and stops, ``surfaces``). Components state only
 their laws (kinetic torque, capacities, the equation of each mode); this layer decides with them.
 """
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 from .chatter import ChatterGuard
 from .friction_set import FrictionSet
+from .surfaces import CONTACT, Guards, SurfaceSet, guards_for
 
 
 def attach(compiled):
@@ -24,7 +26,10 @@ def attach(compiled):
     rows = compiled.friction
     if rows is not None and not isinstance(rows, FrictionSet):
         compiled.friction = FrictionSet.from_rows(rows)
+    if getattr(compiled, "n_surf", 0) and compiled.__dict__.get("surfaces") is None:
+        # the switching surfaces of piecewise laws (contacts), located as events (``surfaces``)
+        compiled.surfaces = SurfaceSet(compiled)
     return compiled
 
 
-__all__ = ["ChatterGuard", "FrictionSet", "attach"]
+__all__ = ["ChatterGuard", "FrictionSet", "SurfaceSet", "Guards", "CONTACT", "attach", "guards_for"]

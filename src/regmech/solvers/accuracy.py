@@ -272,6 +272,10 @@ def net_changes(events) -> list[tuple[float, str, int, int, list[int]]]:
     out: list = []
     last: dict = {}
     for i, ev in enumerate(events):
+        if ev.kind == "contact":
+            # contacts of piecewise laws are compared through the signals they shape: a grazing touch
+            # seen by one run and not the other changes the motion by less than the tolerances
+            continue
         j = last.get(ev.component)
         if j is not None and out[j] is not None:
             t0, comp, old, new, idx = out[j]

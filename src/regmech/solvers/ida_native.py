@@ -216,6 +216,8 @@ def friction_laws(fr):
 def eligible(c, linsolver, deadline=None):
     """None when the native path can run compiled system ``c`` with ``linsolver``, else the reason."""
     plan = c._plan
+    if getattr(c, "n_surf", 0):
+        return "switching surfaces of piecewise laws (contacts located as events in Python)"
     if plan.nonlinear:
         return f"nonlinear device classes ({', '.join(sorted({g.tpl.cls.__name__ for g in plan.nonlinear}))})"
     if plan.offset_slots:

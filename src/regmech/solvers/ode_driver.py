@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import SimulationError
-from ..hybrid import attach
+from ..hybrid import attach, guards_for
 from ..result import Event, Result, Stats
 from .common import Recorder, check_times, output_grid, run_deadline, scale_hint, signal_breakpoints
 from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROUGH,  # noqa: F401 (BLOW_UP
@@ -1010,7 +1010,12 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     out.row(t_start, y, yp, modes)
     if probe is not None:
         probe.add(t_start, u)
-    watch = EventWatch(c, fr, shortest_period(model)) if (fr and fr.n_events > 0) else None
+    # the friction functions and the switching surfaces of piecewise laws (hybrid.surfaces)
+    surf = c.__dict__.get("surfaces")
+    if surf is not None:
+        surf.reset()
+    guards = guards_for(c)
+    watch = EventWatch(c, guards, shortest_period(model)) if guards is not None else None
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     growth = GrowthWatch(t_start, u, max_growth)
     extra = {"rejected": 0}
@@ -1024,6 +1029,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         inner = grid[np.searchsorted(grid, t, side="right"):np.searchsorted(grid, t_stop, side="left")]
         knots = np.append(inner, t_stop)
         if t < t_stop:
+            if surf is not None:
+                surf.begin(t, consistent_row(c, t, u, modes)[0])
             end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name,
                                explicit, t_end, deadline)
             stats.segments += 1
@@ -1033,20 +1040,26 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
             t, u = end.t, end.u
             y_ev, yp_ev = c.y_from_ode(t, u, modes)
             out.row(t, y_ev, yp_ev, modes)
-            crossed = np.zeros(fr.n_events, int)
+            crossed = np.zeros(guards.n_events, int)
             crossed[end.crossed] = -1
-            y, yp, new_modes, changes = fr.settle(t, (y_ev, yp_ev), modes, crossed=crossed)
-            for (comp, old, new, kind) in changes:
-                events.append(Event(t, comp, old, new, kind))
-                guard.record(t, comp)
-            if changes:
-                growth.mode_change()
+            f_crossed, s_crossed = guards.split(crossed)
+            if len(s_crossed):
+                # a contact (a kink of a piecewise law): the state is continuous, the run goes on from it
+                for (comp, old, new, kind) in surf.cross(s_crossed):
+                    events.append(Event(t, comp, old, new, kind))
+            if fr is not None and np.any(f_crossed):
+                y, yp, new_modes, changes = fr.settle(t, (y_ev, yp_ev), modes, crossed=f_crossed)
+                for (comp, old, new, kind) in changes:
+                    events.append(Event(t, comp, old, new, kind))
+                    guard.record(t, comp)
+                if changes:
+                    growth.mode_change()
+                modes = new_modes
+                u = c.ode_state(y)
+                out.row(t, y, yp, modes)
             if len(events) > max_events:
-                raise SimulationError(f"more than {max_events} mode changes in model '{model.name}'; raise "
-                                      f"max_events or simplify the model")
-            modes = new_modes
-            u = c.ode_state(y)
-            out.row(t, y, yp, modes)
+                raise SimulationError(f"more than {max_events} mode changes and contacts in model '{model.name}'; "
+                                      f"raise max_events or simplify the model")
             continue
         t, u = t_stop, end.u
         out.state(t, u, modes, exact=True, left=True)
