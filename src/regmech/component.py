@@ -222,7 +222,8 @@ def _with_parameter_section(cls, doc: str) -> str:
     for n, spec in specs.items():
         default = "required" if spec.default is REQUIRED else f"default {spec.default!r}"
         other = spec.unit_in(TRANSLATIONAL if cls.default_domain == ROTATIONAL else ROTATIONAL)
-        alt = f" ([{other}] when translational)" if switchable and other != spec.unit else ""
+        kind = "translational" if cls.default_domain == ROTATIONAL else "rotational"
+        alt = f" ([{other}] when {kind})" if switchable and other != spec.unit else ""
         dimensionless = ", dimensionless" if spec.unit == "1" else ""
         lines.append(f"{n} : {spec.type_text()}{alt}{dimensionless}, {default}")
         if spec.doc:

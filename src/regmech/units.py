@@ -101,11 +101,16 @@ def variable_unit(var: str, domain: str) -> str | None:
     return None
 
 
+#: the rotational unit of each translational one (a class written for translational flanges, such as
+#: ``ElastoGap``, read with ``domain="rotational"``)
+ROTATIONAL_OF = {v: k for k, v in TRANSLATIONAL_OF.items()}
+
+
 def in_domain(unit: str, domain: str) -> str:
-    """A parameter unit written for the rotational version of a class, in ``domain``."""
+    """A parameter unit written for the other kind of flange, in ``domain`` (``N m/rad`` <-> ``N/m``)."""
     if domain == TRANSLATIONAL:
         return TRANSLATIONAL_OF.get(unit, unit)
-    return unit
+    return ROTATIONAL_OF.get(unit, unit)
 
 
 def normalise(unit: str) -> str:
