@@ -186,6 +186,10 @@ class FrictionDevice(DissipatesPower, Device):
         return None
 
 
+#: a commanded normal force (f_normalized [1] or fn [N]) at most this in magnitude is zero
+COMMAND_ZERO = 1e-12
+
+
 def _checked_command(dev, param, value, t, upper):
     """A commanded normal force, refused when it is not finite or above ``upper`` (beyond round-off): the
     same contract as a signal's (``signals``), said with the controller's name."""
@@ -197,7 +201,9 @@ def _checked_command(dev, param, value, t, upper):
         raise SimulationError(
             f"{type(dev).__name__} '{dev.name}': its {param} from {cmd!r} is {value!r}{bound} at t={t:.9g}; "
             f"keep the controller's output in range (clip(u, 0, 1) in its outputs) or raise fn_max")
-    return value
+    # a command held at zero (clip(u, 0, 1) below its range) is zero to round-off only; its sign would
+    # engage and release the device at every evaluation (chattering between Free and sliding)
+    return 0.0 if abs(value) <= COMMAND_ZERO else value
 
 
 class _MuMixin:
