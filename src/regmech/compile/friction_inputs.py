@@ -50,30 +50,11 @@ class CommandInput:
         g, i = group
         if not hasattr(type(dev), "command_law"):
             raise ModelError(f"{reader}: {type(dev).__name__} '{dev.name}' gives no commands (command_law)")
-        cls = type(dev)
         rows = [int(r) for r in g.row_index[i]]
         sidx = [int(s) for s in g.state_index[i]]
         k = len(rows)
-        e = sympy.symbols(f"_e0:{k}", real=True)
-        de = sympy.symbols(f"_de0:{k}", real=True)
-        z = [sympy.Symbol(f"_z_{s}", real=True) for s in cls.states]
-        t = sympy.Symbol("_t", real=True)
-        pnames, inames = numeric_params(cls), signal_params(cls)
-        syms = {p: sympy.Symbol(p, real=True) for p in pnames + inames}
-        syms.update(dict(zip(cls.states, z)))
-        syms["time"] = t
-        try:
-            expr = sympy.sympify(cls.command_law(_SymbolicSelf(cls, syms), list(e), list(de), key))
-        except (TypeError, AttributeError, sympy.SympifyError) as exc:
-            raise ModelError(f"{cls.__name__}: its command {key!r} could not be written symbolically ({exc}); use "
-                             f"arithmetic and sympy functions of the measurements, states and parameters") from exc
-        grads = [sympy.diff(expr, s) for s in list(e) + list(de) + z]
-        used = expr.free_symbols.union(*(gx.free_symbols for gx in grads))
-        self.params = [p for p in pnames if syms[p] in used]
-        self.signals = [p for p in inames if syms[p] in used]
-        self.fn = _lambdify(list(e) + list(de) + z + [syms[p] for p in self.params + self.signals] + [t],
-                            [expr] + grads)
-        self.dev, self.key, self.k, self.ns = dev, key, k, len(z)
+        self.dev, self.key, self.k = dev, key, k
+        self.fn, self.params, self.signals = _command_function(dev, key, k)
         self.param_values = [float(dev._values[p]) for p in self.params]
         self.sigs = [dev._values[p] for p in self.signals]
         # the rows' coefficients: e_r = S[r] x + e0[r], de_r = S[r] v
@@ -86,6 +67,18 @@ class CommandInput:
         self.iz = c.iz[sidx] if sidx else np.zeros(0, np.int64)
         self.cols = np.concatenate([self.ix, self.iv, self.iz]).astype(np.int64)
         self._nx = len(used_cols)
+
+    # pickling: the lambdified function is made again from the device on first use
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("fn", None)
+        return state
+
+    def __getattr__(self, name):
+        if name != "fn" or "dev" not in self.__dict__:
+            raise AttributeError(name)
+        self.fn = _command_function(self.dev, self.key, self.k)[0]
+        return self.fn
 
     def _call(self, t, y, left):
         e = self.S @ y[self.ix] + self.e0
@@ -103,6 +96,31 @@ class CommandInput:
         d_e, d_de, d_z = np.array(out[1:1 + k]), np.array(out[1 + k:1 + 2 * k]), np.array(out[1 + 2 * k:])
         grad = np.concatenate([d_e @ self.S, d_de @ self.S, d_z]) if k else d_z
         return out[0], grad
+
+
+def _command_function(dev, key: str, k: int):
+    """``(fn, params, signals)``: command ``key`` of ``dev`` (``k`` rows) and its gradient over ``(e, de, z)``,
+    lambdified as ``fn(e..., de..., z..., params..., signals..., t) -> [value, gradient...]``."""
+    cls = type(dev)
+    e = sympy.symbols(f"_e0:{k}", real=True)
+    de = sympy.symbols(f"_de0:{k}", real=True)
+    z = [sympy.Symbol(f"_z_{s}", real=True) for s in cls.states]
+    t = sympy.Symbol("_t", real=True)
+    pnames, inames = numeric_params(cls), signal_params(cls)
+    syms = {p: sympy.Symbol(p, real=True) for p in pnames + inames}
+    syms.update(dict(zip(cls.states, z)))
+    syms["time"] = t
+    try:
+        expr = sympy.sympify(cls.command_law(_SymbolicSelf(cls, syms), list(e), list(de), key))
+    except (TypeError, AttributeError, sympy.SympifyError) as exc:
+        raise ModelError(f"{cls.__name__}: its command {key!r} could not be written symbolically ({exc}); use "
+                         f"arithmetic and sympy functions of the measurements, states and parameters") from exc
+    grads = [sympy.diff(expr, s) for s in list(e) + list(de) + z]
+    used = expr.free_symbols.union(*(gx.free_symbols for gx in grads))
+    params = [p for p in pnames if syms[p] in used]
+    signals = [p for p in inames if syms[p] in used]
+    fn = _lambdify(list(e) + list(de) + z + [syms[p] for p in params + signals] + [t], [expr] + grads)
+    return fn, params, signals
 
 
 def build_inputs(c, devices, own_states) -> list:
