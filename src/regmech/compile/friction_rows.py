@@ -162,8 +162,10 @@ class FrictionRows:
             if m == STUCK:
                 out[j] = arel[j]
                 continue
-            c_own, c_cpl, r, _ = self._call(dev, "relation", None if q is None else q[j],
-                                            int(m), int(quadrant[j]), abs(w[j]), t, left)
+            if q is None or q[j] is None:       # the hot path: no inputs, the device's own signature
+                c_own, c_cpl, r, _ = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left)
+            else:
+                c_own, c_cpl, r, _ = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left, q[j])
             out[j] = c_own * lam_f[j] - r
             if c_cpl:
                 out[j] += c_cpl * lam_all[self.coupled[j]]
