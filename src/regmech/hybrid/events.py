@@ -14,7 +14,10 @@ Two functions per device, each crossing zero *downwards* when its mode must chan
 * lossy gears give their own pair (``gears.gear_events``).
 
 The capacities come from each device's ``capacity_function`` (``(t, left) -> (fn, tau0,
-tau0_max)``, its parameters bound), the law the component states.
+tau0_max)``, its parameters bound), the law the component states; a device whose laws read the
+state (a thermal mass's temperature, a controller's command as normal force:
+``compile.friction_inputs``) gets ``(t, left, q)`` with its inputs at the iterate's ``y``, so its
+engagement and break-away functions are functions of the state.
 """
 
 from __future__ import annotations
