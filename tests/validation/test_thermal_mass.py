@@ -180,3 +180,15 @@ def test_thermal_mass_parameters_are_checked():
     th = ThermalMass(C=1.0, fade=[(300.0, 1.0), (400.0, 0.5)])
     assert th.factor(350.0) == pytest.approx((0.75, -0.005))
     assert th.factor(200.0) == (1.0, 0.0) and th.factor(500.0) == (0.5, 0.0)
+
+
+@pytest.mark.parametrize("solver, options", [("convolution", {}), ("rk4", {"h": 1e-3}), ("scipy:LSODA", {})])
+def test_ode_form_solvers_hold_the_thermal_state(solver, options):
+    """The ODE-form solvers integrate the temperature too (its rate is filled in after the KKT solve, where the
+    friction force is known): the fading stop's temperature and stop time agree with IDA's at their accuracy."""
+    fade = [(300.0, 1.0), (400.0, 0.6)]
+    build = (lambda: _fade_stop(2.0, 100.0, ThermalMass(C=100.0, G=2.0, T_amb=300.0, fade=fade)))
+    ref = build().simulate(t_end=8.0, dt_out=0.01, solver="ida", rtol=1e-9, atol=1e-10)
+    res = build().simulate(t_end=8.0, dt_out=0.01, solver=solver, **options)
+    assert res.events[0].t == pytest.approx(ref.events[0].t, abs=1e-3)
+    np.testing.assert_allclose(res["b.T"], ref["b.T"], atol=1e-3 * np.ptp(ref["b.T"]))
