@@ -15,7 +15,7 @@ from .gearbox import DualClutchTransmission, Gearbox
 from .converter import ConverterFluid, TorqueConverter
 from .stops import ElastoGap, EndStop, MassWithStopAndFriction
 from .laws import Stribeck
-from .heat import ThermalMass
+from .heat import ThermalMass  # noqa: F401  (a law object like Stribeck: importable here, not a component)
 from .accel import Accelerate, LinearAccelerate
 from .loads import (InverseSpeedDependentForce, InverseSpeedDependentTorque, LinearBrake, LinearSpeedDependentForce,
                     LinearSpeedDependentTorque, QuadraticSpeedDependentForce, QuadraticSpeedDependentTorque, SignForce,
@@ -35,5 +35,4 @@ __all__ = [
     "EndStop", "ElastoGap", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad", "Accelerate", "LinearAccelerate",
     "LinearSpeedDependentTorque", "QuadraticSpeedDependentTorque", "SignTorque", "InverseSpeedDependentTorque",
     "LinearSpeedDependentForce", "QuadraticSpeedDependentForce", "SignForce", "InverseSpeedDependentForce",
-    "ThermalMass",
 ]
