@@ -297,8 +297,8 @@ class Clutch(_MuMixin, FrictionDevice):
     def kinetic(self, w_abs, t, left=False, q=None):
         fn = max(self.normal_force(t, left, q), 0.0)
         mu, dmu = self._mu(w_abs)
-        k = self._fade(q) * self.cgeo * fn
-        return mu * k, dmu * k
+        fade = self._fade(q)        # 1.0 without a thermal mass: the products below are then bit for bit as before
+        return fade * (mu * self.cgeo * fn), fade * (dmu * self.cgeo * fn)
 
     def capacity_function(self):
         if self.law_inputs():
@@ -395,8 +395,8 @@ class FrictionContact(_MuMixin, FrictionDevice):
     def kinetic(self, w_abs, t, left=False, q=None):
         fn = max(self.normal_force(t, left, q), 0.0)
         mu, dmu = self._mu(w_abs)
-        k = self._fade(q) * fn
-        return mu * k, dmu * k
+        fade = self._fade(q)
+        return fade * (mu * fn), fade * (dmu * fn)
 
     _LAW = ("kinetic", "normal_force", "capacity_function", "capacities", "relation", "peak_ratio", "_mu")
 
