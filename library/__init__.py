@@ -11,6 +11,7 @@ from .excavator import excavator_swing
 from .gearshift import gear_shift
 from .electric import driver_cycle, electric_car
 from .drivetrains import dct_car, six_speed_car
+from .clutch_control import slip_control
 
 SCENES = {
     "first": first,
@@ -27,6 +28,8 @@ SCENES["electric_car"] = electric_car
 SCENES["driver_cycle"] = driver_cycle
 SCENES["six_speed_car"] = six_speed_car
 SCENES["dct_car"] = dct_car
+SCENES["slip_control"] = slip_control
 
 __all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch", "vehicle_launch",
-           "excavator_swing", "gear_shift", "electric_car", "driver_cycle", "six_speed_car", "dct_car"]
+           "excavator_swing", "gear_shift", "electric_car", "driver_cycle", "six_speed_car", "dct_car",
+           "slip_control"]

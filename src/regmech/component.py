@@ -40,6 +40,23 @@ REQUIRED = object()
 TINY = float(np.finfo(float).tiny)
 
 
+class Command:
+    """A value that another device computes from the state of the DAE, read by a friction device's law
+    (``Controller.command(key)``: a controller's output driving a clutch's or brake's normal force).
+
+    The friction device receives it in its laws as an input ``q`` (``FrictionDevice.law_inputs``); the
+    compiler evaluates it from the unknowns at every residual, Jacobian, event function and mode-logic
+    call, so stick/slip sees the normal force as a function of the state."""
+
+    __slots__ = ("device", "key")
+
+    def __init__(self, device, key: str):
+        self.device, self.key = device, key
+
+    def __repr__(self) -> str:
+        return f"{type(self.device).__name__} '{self.device.name}'.command({self.key!r})"
+
+
 class Param:
     """A declared parameter with a range check.
 
@@ -62,8 +79,12 @@ class Param:
     """
 
     def __init__(self, default=REQUIRED, check: str = "real", *, optional: bool = False,
-                 unit: str = "", doc: str = "", choices: tuple = (), bounds=None, bounds_note: str = ""):
+                 unit: str = "", doc: str = "", choices: tuple = (), bounds=None, bounds_note: str = "",
+                 command: bool = False):
         self.default = default
+        #: a signal parameter that also takes a ``Command`` (a value computed from the state by another
+        #: device, e.g. a controller driving a clutch's normal force)
+        self.command = command
         self.check = check
         self.optional = optional
         self.unit = unit
@@ -98,6 +119,14 @@ class Param:
                 return value
         where = f"{type(comp).__name__} '{comp.name}'"
         if self.check == "signal":
+            if isinstance(value, Command):
+                if not self.command:
+                    raise ParameterError(
+                        f"{where}: parameter '{self.name}' is read as a function of time and cannot take "
+                        f"{value!r}, a value of the state; a controller drives a torque or force through one of "
+                        f"its actuators, and a clutch's or brake's normal force (f_normalized, fn) through a "
+                        f"command")
+                return value
             return as_signal(value, comp, self.name, self.bounds, self.bounds_note)
         if self.check == "any":
             return value
@@ -222,7 +251,8 @@ def _with_parameter_section(cls, doc: str) -> str:
     for n, spec in specs.items():
         default = "required" if spec.default is REQUIRED else f"default {spec.default!r}"
         other = spec.unit_in(TRANSLATIONAL if cls.default_domain == ROTATIONAL else ROTATIONAL)
-        alt = f" ([{other}] when translational)" if switchable and other != spec.unit else ""
+        kind = "translational" if cls.default_domain == ROTATIONAL else "rotational"
+        alt = f" ([{other}] when {kind})" if switchable and other != spec.unit else ""
         dimensionless = ", dimensionless" if spec.unit == "1" else ""
         lines.append(f"{n} : {spec.type_text()}{alt}{dimensionless}, {default}")
         if spec.doc:
@@ -607,5 +637,5 @@ def numeric_params(cls) -> list[str]:
             if p.check in ("real", "positive", "nonnegative", "nonzero")]
 
 
-__all__ = ["Param", "Component", "Body", "Ground", "Device", "Subsystem", "REQUIRED", "Signal", "read_only",
+__all__ = ["Param", "Command", "Component", "Body", "Ground", "Device", "Subsystem", "REQUIRED", "Signal", "read_only",
            "ROTATIONAL", "TRANSLATIONAL"]

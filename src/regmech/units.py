@@ -73,11 +73,12 @@ DISPLAY_UNITS: dict[str, dict[str, float]] = {
     "s": {"s": 1.0, "ms": 1e-3},
     "A": {"A": 1.0, "kA": 1e3, "mA": 1e-3},
     "V": {"V": 1.0, "kV": 1e3, "mV": 1e-3},
+    "K": {"K": 1.0},          # temperatures (a thermal mass's T): display units are scalings, so no deg C
 }
 #: what a signal of each SI unit is, for axis labels ("speed [rpm]")
 QUANTITIES = {"rad": "angle", "rad/s": "speed", "rad/s^2": "angular acceleration", "N m": "torque",
               "m": "position", "m/s": "velocity", "m/s^2": "acceleration", "N": "force", "J": "energy",
-              "W": "power", "1": "mode", "A": "current", "V": "voltage", "s": "time"}
+              "W": "power", "1": "mode", "A": "current", "V": "voltage", "s": "time", "K": "temperature"}
 #: accepted spellings of the display units above
 ALIASES = {"Nm": "N m", "N*m": "N m", "N.m": "N m", "kNm": "kN m", "kN*m": "kN m", "kN.m": "kN m",
            "Nmm": "N mm", "1/min": "rpm", "rev/min": "rpm", "RPM": "rpm", "kph": "km/h", "km/hr": "km/h",
@@ -101,11 +102,16 @@ def variable_unit(var: str, domain: str) -> str | None:
     return None
 
 
+#: the rotational unit of each translational one (a class written for translational flanges, such as
+#: ``ElastoGap``, read with ``domain="rotational"``)
+ROTATIONAL_OF = {v: k for k, v in TRANSLATIONAL_OF.items()}
+
+
 def in_domain(unit: str, domain: str) -> str:
-    """A parameter unit written for the rotational version of a class, in ``domain``."""
+    """A parameter unit written for the other kind of flange, in ``domain`` (``N m/rad`` <-> ``N/m``)."""
     if domain == TRANSLATIONAL:
         return TRANSLATIONAL_OF.get(unit, unit)
-    return unit
+    return ROTATIONAL_OF.get(unit, unit)
 
 
 def normalise(unit: str) -> str:

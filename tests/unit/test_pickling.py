@@ -25,7 +25,7 @@ ALL_SCENES = {**SCENES, "lossy_gear_demo": lossy_gear_demo}
 T_END = {"first": 1.0, "coupled_clutches": 1.5, "one_way_clutch": 2.0, "vehicle_launch": 1.5,
          "excavator_swing": 1.0, "gear_shift": 1.0, "lossy_gear_demo": 0.5, "train": 0.5, "chain_drive": 0.05,
          "electric_car": 0.5, "driver_cycle": 4.0,
-         "six_speed_car": 3.2, "dct_car": 0.8}
+         "six_speed_car": 3.2, "dct_car": 0.8, "slip_control": 4.0}
 
 
 def _simulate(model, name):

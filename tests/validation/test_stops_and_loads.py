@@ -320,3 +320,15 @@ def test_accelerate_follows_the_integral_and_needs_the_inertia_torque():
     assert r3["M.v"][0] == pytest.approx(1.5)
     with pytest.raises(ParameterError, match="Accelerate 'x'.*a_ref"):
         Accelerate("x")
+
+
+def test_elastogap_rotational_units():
+    """ElastoGap is written for translational flanges; a rotational one reads its parameters in rotational units
+    (it showed N/m, N s/m and m before), and its docstring names the rotational units."""
+    rot = ElastoGap("g", c=1.0e4, domain="rotational")
+    assert (rot.param_unit("c"), rot.param_unit("d"), rot.param_unit("phi_rel0")) == ("N m/rad", "N m s/rad", "rad")
+    lin = ElastoGap("g", c=1.0e4)
+    assert (lin.param_unit("c"), lin.param_unit("d"), lin.param_unit("phi_rel0")) == ("N/m", "N s/m", "m")
+    assert "[N m/rad] when rotational" in ElastoGap.__doc__
+    with pytest.raises(rm.ParameterError, match=r"N m/rad"):
+        ElastoGap("g", c=-1.0, domain="rotational")

@@ -188,3 +188,46 @@ def test_counter_rotation_is_continuous_and_dissipative(w_p, w_t):
     mid = _two_speeds(100.0, -50.0)
     tr = TR[0, 1] + (TR[0, 1] - 1.0) * (-0.5)
     assert mid[1] == pytest.approx(tr * mid[0], rel=1e-9)
+
+
+@pytest.mark.parametrize("w", [1.0, 50.0])
+def test_no_jump_between_traction_and_overrun_at_equal_speeds(w):
+    """At w_t = w_p the speed ratio is exactly 1 in both branches, so traction and overrun both give zero torque
+    with the same slope. The former regularisation nu = w_t w_p / (w_p^2 + w_eps^2) made nu = 1 - w_eps^2 / w^2
+    at equal speeds: +-7.9e-8 N m on either side of a slip of 1e-12 (any speed), which a locked lock-up clutch
+    flipped at every Newton iterate (fuzz seed 10034: IDA failed at rtol 1e-8)."""
+    d = 1e-12 * w
+    below, above = _two_speeds(w, w - d)[0], _two_speeds(w, w + d)[0]
+    slope = w * (1.0 / K[-1, 1] ** 2) / (1.0 - K[-1, 0])        # |d tau_p / d w_t| at nu = 1: c's slope times w
+    assert below == pytest.approx(slope * d, rel=1e-3)           # linear in the slip, the same on both sides
+    assert above == pytest.approx(-slope * d, rel=1e-3)
+
+
+def test_locked_lockup_runs_under_ida_at_tight_tolerance():
+    """Fuzz seed 10034's converter part: the lock-up clutch holds pump and turbine from the start while a
+    Gearbox in neutral idles behind it; IDA refused it ('corrector convergence failed', at t = 6e-4 s at rtol
+    1e-8) because of the jump above. Now it runs, with DOP853's answer."""
+    def build():
+        m = rm.Model("locked")
+        J1 = m.add(Inertia("J1", J=5.223))
+        tc = m.add(TorqueConverter("tc", K_table=[(0.0, 7.019), (0.5, 7.721), (0.9, 11.23)],
+                                   TR_table=[(0.0, 1.754), (0.85, 1.0), (1.0, 1.0)], J_pump=0.5276,
+                                   J_turbine=0.08671, lockup=0.9166, lockup_capacity=27.74))
+        J2 = m.add(Inertia("J2", J=0.05149))
+        drive = m.add(Torque("drive", tau=0.8156))
+        from regmech.components import Gearbox
+        gb = m.add(Gearbox("gb", ratios=[2.722, 2.154], gear=[(0.0, 0), (0.2318, 2)], capacity=32.54,
+                           efficiency=None, J_in=0.01709, J_out=0.2902, J_gear=0.0009531, release_time=0.07005,
+                           engage_time=0.04691, shift_delay=0.05935))
+        J3 = m.add(Inertia("J3", J=0.01347, w0=4.424))
+        m.connect(tc.pump, J1.flange_a)
+        m.connect(tc.turbine, J2.flange_b)
+        m.connect(drive.flange, J1.flange_b)
+        m.connect(gb.flange_a, tc.turbine)
+        m.connect(gb.flange_b, J3.flange_b)
+        return m
+    ida = build().simulate(t_end=0.6, dt_out=2e-3, solver="ida", rtol=1e-8, atol=1e-10)
+    dop = build().simulate(t_end=0.6, dt_out=2e-3, solver="scipy:DOP853", rtol=1e-10, atol=1e-12)
+    assert set(ida["tc.lockup.mode"]) == {0.0}
+    assert [(e.component, e.new_mode) for e in ida.events] == [(e.component, e.new_mode) for e in dop.events]
+    np.testing.assert_allclose(ida["J1.w"], dop["J1.w"], atol=1e-6 * np.ptp(dop["J1.w"]))

@@ -43,6 +43,53 @@ class FrictionRows:
         self._coupled_rows = [j for j, d in enumerate(self.devices) if d.coupled]
         # dense copy of G for the small matrices of typical drivetrains (sparse matvec costs ~10 us)
         self._Gd = self.G.toarray() if self.G.shape[0] * self.G.shape[1] <= 40000 else None
+        # inputs of the laws from the state (``friction_inputs``) and the devices' own states
+        from .friction_inputs import build_inputs
+        self.inputs = build_inputs(compiled, self.devices, compiled._fstate_z)
+        self.has_inputs = any(self.inputs)
+        self._q_devs = [j for j, ins in enumerate(self.inputs) if ins]
+        #: (row j, index of the state in z) of every friction device's own state
+        self.state_rows = [(j, zk) for j, own in enumerate(compiled._fstate_z) for zk in own.values()]
+        self._ybuf = np.zeros(compiled.N) if self.has_inputs else None
+
+    # -- inputs from the state --------------------------------------------------
+    def q_all(self, t, y):
+        """Per device its law inputs ``q`` at the unknowns ``y`` (None for a device without inputs)."""
+        left = self._left(t)
+        out = [None] * self.mf
+        for j in self._q_devs:
+            out[j] = np.array([inp.value(t, y, left) for inp in self.inputs[j]])
+        return out
+
+    def q_from(self, t, x, v, z):
+        """``q_all`` from positions, speeds and states (the mode logic's and the KKT solve's view)."""
+        if not self.has_inputs:
+            return None
+        c, y = self.c, self._ybuf
+        y[c._sx], y[c._sv], y[c._sz] = x, v, z
+        return self.q_all(t, y)
+
+    @staticmethod
+    def _call(dev, name, q, *args):
+        """``dev.<name>(*args)``, with ``q`` appended for a device that has inputs (only then: a user's
+        subclass without inputs may state its laws without the argument)."""
+        fn = getattr(dev, name)
+        return fn(*args) if q is None else fn(*args, q)
+
+    def state_rates(self, t, v, lam_all, q):
+        """Indices in ``z`` and rates of the friction devices' own states at speeds ``v`` and forces ``lam``."""
+        left = self._left(t)
+        w = self.w_rel(v)
+        zi, rates = [], []
+        done = set()
+        for j, zk in self.state_rows:
+            if j in done:
+                continue
+            done.add(j)
+            r = self.devices[j].state_rates(float(w[j]), float(lam_all[self.offset + j]), t, left, q[j])[0]
+            rates.extend(r)
+            zi.extend(self.c._fstate_z[j].values())
+        return np.asarray(zi, np.int64), np.asarray(rates, float)
 
     # -- helpers --------------------------------------------------------------
     def _left(self, t):
@@ -58,8 +105,8 @@ class FrictionRows:
     def start_modes(self, t):
         return self.initial_modes()
 
-    def relations(self, t, v, modes):
-        """Per row (c_own, c_cpl) and the right-hand sides of the non-stuck rows."""
+    def relations(self, t, v, modes, q=None):
+        """Per row (c_own, c_cpl) and the right-hand sides of the non-stuck rows (``q``: ``q_all``'s inputs)."""
         left = self._left(t)
         w = self.w_rel(v)
         rel, rhs = [], np.zeros(self.mf)
@@ -67,7 +114,8 @@ class FrictionRows:
             if modes[j] == STUCK:
                 rel.append((0.0, 0.0))
                 continue
-            c_own, c_cpl, r, _ = dev.relation(int(modes[j]), int(self.quadrant[j]), abs(w[j]), t, left)
+            c_own, c_cpl, r, _ = self._call(dev, "relation", None if q is None else q[j],
+                                            int(modes[j]), int(self.quadrant[j]), abs(w[j]), t, left)
             rel.append((c_own, c_cpl))
             rhs[j] = r
         return tuple(rel), rhs
@@ -102,7 +150,7 @@ class FrictionRows:
         return quadrant
 
     # -- DAE rows ---------------------------------------------------------------
-    def residual_rows(self, t, v, a, lam_all, modes):
+    def residual_rows(self, t, v, a, lam_all, modes, q=None):
         left = self._left(t)
         lam_f = lam_all[self.offset:]
         w = self.w_rel(v)
@@ -114,7 +162,10 @@ class FrictionRows:
             if m == STUCK:
                 out[j] = arel[j]
                 continue
-            c_own, c_cpl, r, _ = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left)
+            if q is None or q[j] is None:       # the hot path: no inputs, the device's own signature
+                c_own, c_cpl, r, _ = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left)
+            else:
+                c_own, c_cpl, r, _ = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left, q[j])
             out[j] = c_own * lam_f[j] - r
             if c_cpl:
                 out[j] += c_cpl * lam_all[self.coupled[j]]
@@ -137,27 +188,91 @@ class FrictionRows:
         pb.weighted(c.r_fric, c.ilam[self.offset + j], np.ones(self.mf), woff + k * j + 3)
         cp = self.coupled >= 0
         pb.weighted(c.r_fric[cp], c.ilam[self.coupled[cp]], np.ones(int(cp.sum())), woff + k * j[cp] + 4)
-        return k * self.mf
+        nw = k * self.mf
+        # inputs from the state: friction row j on the columns its inputs read; own states' rows on w_rel's
+        # speeds, on lam_j and on the inputs' columns. Weights follow the 5 per row, in this order:
+        self._extra = []        # (kind, row j, z index or -1, input k or -1, first weight, count)
+        for j in self._q_devs:
+            for kq, inp in enumerate(self.inputs[j]):
+                n = len(inp.cols)
+                pb.weighted(np.full(n, c.r_fric[j]), inp.cols, np.ones(n), woff + nw + np.arange(n))
+                self._extra.append(("row", j, -1, kq, nw, n))
+                nw += n
+        Gr = self.G.tocsr()
+        for j, zk in self.state_rows:
+            rz = c.r_z[zk]
+            cols = Gr.indices[Gr.indptr[j]:Gr.indptr[j + 1]]
+            coefs = Gr.data[Gr.indptr[j]:Gr.indptr[j + 1]]
+            pb.weighted(np.full(len(cols), rz), c.iv[cols], coefs, np.full(len(cols), woff + nw))
+            self._extra.append(("dw", j, zk, -1, nw, 1))
+            nw += 1
+            pb.weighted([rz], [c.ilam[self.offset + j]], [1.0], [woff + nw])
+            self._extra.append(("dlam", j, zk, -1, nw, 1))
+            nw += 1
+            for kq, inp in enumerate(self.inputs[j]):
+                n = len(inp.cols)
+                pb.weighted(np.full(n, rz), inp.cols, np.ones(n), woff + nw + np.arange(n))
+                self._extra.append(("dq", j, zk, kq, nw, n))
+                nw += n
+        return nw
 
-    def weights(self, t, v, cj, modes, lam_all=None):
+    def weights(self, t, v, cj, modes, lam_all=None, y=None):
         left = self._left(t)
         w = self.w_rel(v)
         quadrant = self.quadrant if lam_all is None else self._iterate_quadrants(v, lam_all, modes)
-        out = np.zeros(5 * self.mf)
+        extra = getattr(self, "_extra", ())
+        out = np.zeros(5 * self.mf + sum(e[5] for e in extra))
+        q = grads = None
+        if self.has_inputs and y is not None:
+            q, grads = [None] * self.mf, [None] * self.mf
+            for j in self._q_devs:
+                vg = [inp.value_and_gradient(t, y, left) for inp in self.inputs[j]]
+                q[j] = np.array([val for val, _ in vg])
+                grads[j] = [g for _, g in vg]
         for j, dev in enumerate(self.devices):
             m = modes[j]
             if m == STUCK:
                 out[5 * j + 1] = cj
                 out[5 * j + 2] = 1.0
             else:
-                c_own, c_cpl, _, drhs = dev.relation(int(m), int(quadrant[j]), abs(w[j]), t, left)
+                c_own, c_cpl, _, drhs = self._call(dev, "relation", None if q is None else q[j],
+                                                   int(m), int(quadrant[j]), abs(w[j]), t, left)
                 out[5 * j] = -drhs * np.sign(w[j])
                 out[5 * j + 3] = c_own
                 out[5 * j + 4] = c_cpl
+        if extra and q is not None:
+            dq_row = {}
+            rates = {}
+            for kind, j, zk, kq, start, n in extra:
+                if kind == "row":
+                    m = int(modes[j])
+                    if m == STUCK:
+                        continue       # a_rel = 0 reads no input
+                    if j not in dq_row:
+                        dq_row[j] = self.devices[j].law_gradient(m, int(quadrant[j]), abs(w[j]), t, left, q[j])
+                    out[start:start + n] = -dq_row[j][kq] * grads[j][kq]
+                    continue
+                if (j, zk) not in rates:
+                    names = list(self.c._fstate_z[j].values())
+                    r = self.devices[j].state_rates(float(w[j]), float(lam_all[self.offset + j]), t, left, q[j])
+                    rates[(j, zk)] = tuple(np.asarray(x)[names.index(zk)] for x in r)
+                _, d_w, d_lam, d_q = rates[(j, zk)]
+                if kind == "dw":
+                    out[start] = -d_w
+                elif kind == "dlam":
+                    out[start] = -d_lam
+                else:
+                    out[start:start + n] = -d_q[kq] * grads[j][kq]
         return out
 
     def slopes(self, t, v, modes):
         """d lam / d w_rel of each non-stuck row (the friction characteristic's slope; 0 when stuck)."""
+        if self.has_inputs:
+            from ..errors import StructureError
+            names = [self.devices[j].name for j in self._q_devs]
+            raise StructureError(f"linearize: friction device(s) {names} read inputs from the state (a thermal mass "
+                                 f"or a controller's command), which the structural-matrix form cannot hold; use "
+                                 f"the simulation for these models")
         left = self._left(t)
         w = self.w_rel(v)
         out = np.zeros(self.mf)

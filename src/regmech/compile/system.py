@@ -116,6 +116,18 @@ class CompiledSystem:
                     self.state_start.append(0.0 if val is None else float(val))
             nz += len(devs) * ns
             self.groups.append(KernelGroup(tpl, devs, rows, sidx))
+        # friction devices' own states (a thermal mass's temperature): after the kernels' states, their
+        # rates stated by the device and evaluated with the friction rows (they read its friction force)
+        self._fstate_z: list[dict] = []
+        for row in st.friction:
+            d = row.device
+            own = {}
+            for s, start in (d.friction_states() if hasattr(d, "friction_states") else {}).items():
+                own[s] = nz
+                self.state_names.append(f"{d.name}.{s}")
+                self.state_start.append(float(start))
+                nz += 1
+            self._fstate_z.append(own)
         self.nz = nz
         self.state_start = np.array(self.state_start, float)
         # switching surfaces of piecewise laws (``Device.switching_surfaces``): surface k of instance i of a
@@ -275,14 +287,20 @@ class CompiledSystem:
             # the friction rows read v, a and lam only: views where ``unpack`` would copy all five
             a = yp[self._sv].copy()
             a[self.Dv] = y[self._sad]
-            res[self.r_fric] = self.friction.residual_rows(t, y[self._sv], a, y[self._slam], modes)
+            fr = self.friction
+            q = fr.q_all(t, y) if fr.has_inputs else None
+            res[self.r_fric] = fr.residual_rows(t, y[self._sv], a, y[self._slam], modes, q)
+            if fr.state_rows:
+                # z' - h: the plan wrote z' (these states have no kernel); subtract the device's rates
+                zi, rates = fr.state_rates(t, y[self._sv], y[self._slam], q)
+                res[self.r_z[zi]] -= rates
 
     def jacobian_data(self, t, y, yp, cj, modes=None):
         """CSC values of ``dF/dy + cj dF/dy'`` on ``self.jac.pattern``."""
         plan = self.__dict__.get("_jac_plan")
         if plan is None or plan.jac is not self.jac:      # the pattern grows when friction rows are added
             plan = self._jac_plan = JacobianPlan(self.jac, self._plan, self.nw_kernel)
-        extra = self.friction.weights(t, y[self._sv], cj, modes, y[self._slam]) if self.mf else None
+        extra = self.friction.weights(t, y[self._sv], cj, modes, y[self._slam], y=y) if self.mf else None
         if extra is not None:
             extra = extra[: plan.n_extra]        # trailing weights without pattern entries (no coupled rows)
         return plan.data(t, y, cj, t >= self._t_right, extra)
@@ -347,13 +365,22 @@ class CompiledSystem:
                                     else self.ScT)
         parts = [-(ScT @ tau), gp[2], gv[1]]
         relations = ()
+        q = None
         if self.mf:
-            relations, rhs_f = self.friction.relations(t, v, modes)
+            fr = self.friction
+            if fr.has_inputs:
+                q = fr.q_all(t, plan.ybuf)      # device_outputs left (x, v, z) in the plan's buffer
+            relations, rhs_f = fr.relations(t, v, modes, q)
             parts.append(rhs_f)
         rhs = np.concatenate(parts)
         if not len(rhs):
             return np.zeros(0), np.zeros(0), dz
         sol = self._kkt(modes, relations).solve(rhs)
+        if self.mf and self.friction.state_rows:
+            # friction devices' own states read their friction force: known after the solve
+            zi, rates = self.friction.state_rates(t, v, sol[self.n:], q)
+            dz = dz.copy()
+            dz[zi] = rates
         return sol[: self.n], sol[self.n:], dz
 
     def project(self, t, x_guess, v_guess, fixed_x=None, fixed_v=None, modes=None, starts=()):

@@ -2,7 +2,7 @@
 
 from .backlash import Backlash, ElastoBacklash
 from .electric import DCMotor, ElectricMotor, SeriesDCMotors
-from .control import PI, Controller, Driver
+from .control import PI, Controller, Driver, PICommand
 from .elastic import Damper, Shaft, Spring, SpringDamper, TwoFlangeCompliant
 from .friction import BearingFriction, Brake, Clutch, FrictionContact, FrictionDevice, LossyGear, OneWayClutch
 from .gears import IdealGear
@@ -15,6 +15,7 @@ from .gearbox import DualClutchTransmission, Gearbox
 from .converter import ConverterFluid, TorqueConverter
 from .stops import ElastoGap, EndStop, MassWithStopAndFriction
 from .laws import Stribeck
+from .heat import ThermalMass  # noqa: F401  (a law object like Stribeck: importable here, not a component)
 from .accel import Accelerate, LinearAccelerate
 from .loads import (InverseSpeedDependentForce, InverseSpeedDependentTorque, LinearBrake, LinearSpeedDependentForce,
                     LinearSpeedDependentTorque, QuadraticSpeedDependentForce, QuadraticSpeedDependentTorque, SignForce,
@@ -29,7 +30,7 @@ __all__ = [
     "Clutch", "OneWayClutch", "LossyGear", "Brake", "FrictionContact", "BearingFriction", "FrictionDevice",
     "Rolling", "Wheel", "MagicFormulaTyre", "MagicFormulaWheel",
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
-    "DCMotor", "SeriesDCMotors", "ElectricMotor", "Controller", "PI", "Driver",
+    "DCMotor", "SeriesDCMotors", "ElectricMotor", "Controller", "PI", "PICommand", "Driver",
     "Gearbox", "DualClutchTransmission", "TorqueConverter", "ConverterFluid",
     "EndStop", "ElastoGap", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad", "Accelerate", "LinearAccelerate",
     "LinearSpeedDependentTorque", "QuadraticSpeedDependentTorque", "SignTorque", "InverseSpeedDependentTorque",

@@ -24,8 +24,13 @@ sensor spanning the device's flanges). What a controller drives: its own
 actuator rows, with any law of the output and the actuated speed (a torque
 source, an engine's ``throttle * T_full(w)``, an electric machine's
 ``command * T_env(w)``, a smoothed brake). The normal force of a
-stick/slip ``Clutch`` or ``Brake`` is not an actuator: their capacity is
-read by the hybrid layer from time signals, not from another device's state.
+stick/slip ``Clutch``, ``Brake`` or ``FrictionContact`` is driven by a
+*command*: a named output (``commands = {"u": "1"}``) that exerts nothing
+itself; ``Clutch(..., f_normalized=ctl.command("u"))`` makes the clutch's
+normal force that value, evaluated from the state wherever the hybrid layer
+reads it (residual, Jacobian, event functions, mode logic:
+``compile.friction_inputs``), so stick, slip, break-away and engagement
+follow the loop.
 
 User controllers are a small class: declare ``sensors`` and ``actuators``
 (name -> ``"rotational"``/``"translational"``), ``states`` with their start
@@ -102,6 +107,8 @@ class Controller(Device):
     is_source = True
     sensors: ClassVar[dict[str, str]] = {}
     actuators: ClassVar[dict[str, str]] = {}
+    #: named outputs read by other devices (a clutch's normal force), name -> unit; no flange, no force
+    commands: ClassVar[dict[str, str]] = {}
     rel_names = {ROTATIONAL: (None, None, None, None), TRANSLATIONAL: (None, None, None, None)}
     derived_units: ClassVar[dict[str, str]] = {}
     #: units of the names ``signals`` returns
@@ -117,12 +124,30 @@ class Controller(Device):
             flanges += [(a, dom), (f"{a}_support", dom, True)]
         cls.flanges = tuple(flanges)
         cls.derived_units = {**{a: ("N m" if d == ROTATIONAL else "N") for a, d in cls.actuators.items()},
-                             **cls.signal_units}
+                             **cls.commands, **cls.signal_units}
         super().__init_subclass__(**kwargs)
+
+    def command(self, key: str):
+        """A ``Command`` reading this controller's output ``key`` (declared in ``commands``), to drive a
+        ``Clutch``'s or ``Brake``'s ``f_normalized`` or a ``FrictionContact``'s ``fn``."""
+        from ..component import Command
+        if key not in self.commands:
+            raise ModelError(f"{type(self).__name__} '{self.name}' has no command {key!r}; its commands are "
+                             f"{sorted(self.commands)} (declare commands = {{'{key}': 'unit'}} on the class and "
+                             f"return it from outputs())")
+        return Command(self, key)
+
+    def command_law(self, e, de, key):
+        """The expression of command ``key`` (``outputs(m)[key]``), written symbolically by the compiler."""
+        out = self.outputs(self._measure(e, de))
+        if key not in out:
+            raise ModelError(f"{_class_name(self)}: outputs() gave no value for command '{key}'; return a dict "
+                             f"with one entry per actuator and per command")
+        return self._checked("outputs()", [(key, out[key])])[0]
 
     # -- what a subclass writes ------------------------------------------------------------------
     def outputs(self, m: Measurements) -> dict:
-        """Actuator name -> torque [N m] or force [N] (sympy-compatible)."""
+        """Actuator or command name -> torque [N m] or force [N], or the command's value (sympy-compatible)."""
         raise NotImplementedError(f"{type(self).__name__} must define outputs(m)")
 
     def rates(self, m: Measurements) -> list:
@@ -177,7 +202,7 @@ class Controller(Device):
     def derived(self, t, left, e, de, tau, z):
         ns = len(self.sensors)
         out = {a: tau[ns + j] for j, a in enumerate(self.actuators)}
-        if self.signal_units:
+        if self.signal_units or self.commands:
             out.update(self._evaluate_signals(t, left, e, de, z))
         return out
 
@@ -196,8 +221,12 @@ class Controller(Device):
             ts = sympy.Symbol("_t", real=True)
             ps = [sympy.Symbol(n, real=True) for n in names]
             proxy = _Symbols(cls, dict(zip(names, ps)) | dict(zip(cls.states, zs)) | {"time": ts})
-            exprs = cls.signals(proxy, cls._measure(proxy, list(es), list(des)))
-            keys = list(cls.signal_units)
+            measured = cls._measure(proxy, list(es), list(des))
+            exprs = dict(cls.signals(proxy, measured))
+            if cls.commands:
+                outs = cls.outputs(proxy, measured)
+                exprs.update({key: outs[key] for key in cls.commands})
+            keys = list(cls.commands) + list(cls.signal_units)
             fn = sympy.lambdify(list(es) + list(des) + zs + ps + [ts], [sympy.sympify(exprs[n]) for n in keys],
                                 modules="numpy")
             cache = (keys, fn)
@@ -259,14 +288,15 @@ class PI(Controller):
     I0 = Param(0.0, unit="N m", doc="start of the integral part")
 
     def validate(self):
+        unit = self.param_unit("u_max")
         if not self.u_min < self.u_max:
-            raise ParameterError(f"PI '{self.name}': needs u_min < u_max, got u_min={self.u_min}, "
-                                 f"u_max={self.u_max} [N m]")
+            raise ParameterError(f"{type(self).__name__} '{self.name}': needs u_min < u_max, got u_min={self.u_min}, "
+                                 f"u_max={self.u_max} [{unit}]")
         if self.T_t is None:
             self._values["T_t"] = self.T_i
         if not self.u_min <= self.I0 <= self.u_max:
-            raise ParameterError(f"PI '{self.name}': the start I0={self.I0} N m lies outside the output limits "
-                                 f"[{self.u_min}, {self.u_max}]; start the integral part inside them")
+            raise ParameterError(f"{type(self).__name__} '{self.name}': the start I0={self.I0} [{unit}] lies outside "
+                                 f"the output limits [{self.u_min}, {self.u_max}]; start the integral part inside them")
 
     def _parts(self, m):
         r = self.w_ref - m.w["sensor"]
@@ -283,6 +313,35 @@ class PI(Controller):
     def signals(self, m):
         r, v, _ = self._parts(m)
         return {"v": v, "error": r}
+
+
+class PICommand(PI):
+    """PI loop whose output is a *command* ``u`` instead of a torque: it drives a friction device's
+    normal force (``Clutch(..., f_normalized=pi.command("u"))``, ``Brake``, ``FrictionContact``'s ``fn``)::
+
+        r = w_ref(t) - w                      error [rad/s] (w: the sensor's speed, relative to sensor_ref)
+        v = k r + I                           unlimited output [1]
+        u = clip(v, u_min, u_max)             the command [1] (default limits 0 and 1: f_normalized's range)
+        dI/dt = (k / T_i) r + (u - v) / T_t   integral part with anti-windup
+
+    ``k`` [s/rad] != 0: negative for a reverse-acting loop, e.g. a clutch holding its slip speed: with
+    ``sensor`` on the input inertia and ``sensor_ref`` on the output one, ``w`` is the slip
+    ``w_a - w_b``, and more slip than ``w_ref`` must raise the normal force (``k < 0``). At a steady
+    slip the clutch transmits the load's torque ``tau_L``, so ``u = tau_L / (mu cgeo fn_max)`` and the
+    error is zero (integral action). ``T_i``, ``T_t`` [s], ``u_min`` < ``u_max`` [1], ``I0`` [1] as ``PI``.
+    Exports ``u`` (the command), the state ``I``, ``v`` and ``error``.
+    """
+
+    actuators = {}
+    commands = {"u": "1"}
+    signal_units = {"v": "1", "error": "rad/s"}
+    k = Param(check="nonzero", unit="s/rad", doc="gain per rad/s of error (negative: reverse acting)")
+    u_max = Param(1.0, check="real", unit="1", doc="upper output limit")
+    u_min = Param(0.0, check="real", unit="1", doc="lower output limit")
+    I0 = Param(0.0, unit="1", doc="start of the integral part")
+
+    def outputs(self, m):
+        return {"u": self._parts(m)[2]}
 
 
 class Driver(Controller):
@@ -356,4 +415,4 @@ class Driver(Controller):
         return {"throttle": throttle, "pedal_brake": brake, "error": r}
 
 
-__all__ = ["Controller", "Measurements", "PI", "Driver", "clip", "positive_part", "smooth_sign"]
+__all__ = ["Controller", "Measurements", "PI", "PICommand", "Driver", "clip", "positive_part", "smooth_sign"]

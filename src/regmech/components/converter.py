@@ -22,8 +22,14 @@ torque), so the law is continuous where traction meets overrun. A turbine turnin
 (``nu < 0``, a car rolling back at idle) is deep stall: ``c`` is held at ``c(0)`` and the torque
 ratio goes linearly from ``TR(0)`` to 1 at ``nu = -1``, where traction meets overrun a second
 time (``w_t = -w_p``), so the law is continuous in every quadrant.
-The speed ratio is regularised as ``nu = w_t w_p / (w_p^2 + w_eps^2)`` so that it is defined
-at standstill (zero torque there); ``w_eps`` (1e-3 rad/s) changes nothing at running speeds.
+The speed ratio is regularised as ``nu = (w_t w_p + w_eps^2) / (w_p^2 + w_eps^2)`` (overrun:
+``(w_p w_t + w_eps^2) / (w_t^2 + w_eps^2)``) so that it is defined at standstill (zero torque
+there) and is exactly 1 whenever ``w_t = w_p``: there both branches give zero torque with the
+same slope, so a locked lock-up clutch (which holds ``w_t = w_p`` to round-off) sits on a smooth
+law. (``w_t w_p / (w_p^2 + w_eps^2)``, the form before, is ``1 - w_eps^2 / w^2`` at equal speeds:
+traction and overrun then gave ``+-c'(1) w_eps^2``, a jump of 1.6e-7 N m at any speed that the
+round-off of a locked clutch's slip flipped at every Newton iterate, and IDA failed at rtol 1e-8.)
+``w_eps`` (1e-3 rad/s) changes nothing at running speeds.
 
 Power: the fluid absorbs ``tau_p w_p - tau_t w_t = tau_p w_p (1 - TR(nu) nu) >= 0`` in traction
 (the efficiency ``TR nu`` must not exceed 1, which the tables are checked for) and
@@ -148,8 +154,8 @@ class ConverterFluid(Device):
     def laws(self, e, de):
         wp, wt = de
         eps2 = self.w_eps ** 2
-        nu = wt * wp / (wp ** 2 + eps2)           # traction: w_t / w_p
-        nu_o = wp * wt / (wt ** 2 + eps2)         # overrun: w_p / w_t
+        nu = (wt * wp + eps2) / (wp ** 2 + eps2)          # traction: w_t / w_p, exactly 1 at w_t = w_p
+        nu_o = (wp * wt + eps2) / (wt ** 2 + eps2)        # overrun: w_p / w_t
         c_pts = self._c_points
         tau_p = wp * sympy.Abs(wp) * piecewise_linear(nu, c_pts)
         tau_o = wt * sympy.Abs(wt) * piecewise_linear(nu_o, c_pts)

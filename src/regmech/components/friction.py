@@ -38,29 +38,113 @@ import numpy as np
 from ..component import Device, Param, read_only
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK  # noqa: F401  (the mode codes, as before)
 from ..ports import ROTATIONAL, TRANSLATIONAL
-from .heat import DissipatesPower
+from ..component import Command
+from .heat import HEAT_UNITS, THERMAL_UNITS, DissipatesPower, ThermalMass
 
 
 class FrictionDevice(DissipatesPower, Device):
-    """Base class: subclasses define ``kinetic(w_abs, t, left)`` and ``engaged``."""
+    """Base class: subclasses define ``kinetic(w_abs, t, left, q=None)`` and ``engaged``.
+
+    Inputs from the state: a device whose laws read more than ``|w_rel|`` and ``t`` lists them in
+    ``law_inputs()`` (its own temperature with a ``ThermalMass``, a controller's ``Command`` as its
+    normal force); the compiler then evaluates them from the DAE's unknowns and passes their values
+    as ``q`` (a float array in that order) to ``kinetic``, ``normal_force``, ``capacities``,
+    ``relation`` and the capacity function, everywhere: residual, Jacobian, event functions, mode
+    logic. A device without inputs is called without ``q``, as before (user subclasses keep working).
+    Its own states (``friction_states``) join the DAE with the rates ``state_rates`` states, which
+    may read its friction force ``lam`` and ``w_rel``.
+    """
 
     kind = "friction"
     one_way = False   # True: only w_rel >= 0 (freewheel); no Backward mode
     coupled = False   # True: the row's force is tied to the device's own rigid row (LossyGear)
+    #: the parameter holding the normal force (a signal, or a ``Command`` for classes that take one)
+    _force_param: str | None = None
 
-    def relation(self, mode, quadrant, w_abs, t, left=False):
+    # -- inputs from the state and own states (a ThermalMass; a Command as normal force) ----------------
+    def law_inputs(self) -> list[tuple]:
+        """What the laws read besides ``|w_rel|`` and ``t``, in the order of ``q``: ``("state", name)`` for
+        one of the device's own ``friction_states``, ``("command", device, key)`` for a ``Command``."""
+        out = []
+        if self._values.get("thermal") is not None:
+            out.append(("state", "T"))
+        cmd = self._values.get(self._force_param) if self._force_param else None
+        if isinstance(cmd, Command):
+            out.append(("command", cmd.device, cmd.key))
+        return out
+
+    def _q_index(self, what: str):
+        """Position of input ``"T"`` (the temperature) or ``"command"`` in ``q``, or None."""
+        for i, entry in enumerate(self.law_inputs()):
+            if (entry[0] == "state" and entry[1] == what) or (entry[0] == what):
+                return i
+        return None
+
+    def friction_states(self) -> dict:
+        """The device's own states (name -> start value) and their units (``signal_unit``)."""
+        th = self._values.get("thermal")
+        return {"T": th.T0} if th is not None else {}
+
+    def state_rates(self, w_rel: float, lam: float, t: float, left: bool, q):
+        """Rates of ``friction_states`` and their derivatives: ``(rates, d/dw_rel, d/dlam, d/dq)`` (arrays of
+        shapes (ns,), (ns,), (ns,), (ns, nq)). A ``ThermalMass``: ``dT/dt = (lam w_rel - G (T - T_amb)) / C``,
+        ``lam w_rel`` the power the friction absorbs (``heat_flow``)."""
+        th = self._values["thermal"]
+        iT = self._q_index("T")
+        dq = np.zeros((1, len(q)))
+        dq[0, iT] = -th.G / th.C
+        return (np.array([th.rate(lam * w_rel, q[iT])]), np.array([lam / th.C]), np.array([w_rel / th.C]), dq)
+
+    def _fade(self, q) -> float:
+        th = self._values.get("thermal")
+        if th is None or q is None:
+            return 1.0
+        return th.factor(q[self._q_index("T")])[0]
+
+    def law_gradient(self, mode, quadrant, w_abs, t, left, q) -> np.ndarray:
+        """``d rhs / d q`` of ``relation`` (central differences of the law; the fade table's kinks and a
+        command's clip make analytic slopes no more useful to Newton's iteration than these)."""
+        q = np.asarray(q, float)
+        out = np.zeros(len(q))
+        for i in range(len(q)):
+            h = 1e-8 * max(1.0, abs(q[i]))
+            qp, qm = q.copy(), q.copy()
+            qp[i] += h
+            qm[i] -= h
+            out[i] = (self.relation(mode, quadrant, w_abs, t, left, qp)[2]
+                      - self.relation(mode, quadrant, w_abs, t, left, qm)[2]) / (2 * h)
+        return out
+
+    @property
+    def derived_units(self):
+        return THERMAL_UNITS if self._values.get("thermal") is not None else HEAT_UNITS
+
+    def signal_unit(self, var: str):
+        if var == "T" and self._values.get("thermal") is not None:
+            return "K"
+        return super().signal_unit(var)
+
+    def _check_thermal(self):
+        th = self._values.get("thermal")
+        if th is not None and not isinstance(th, ThermalMass):
+            from ..errors import ParameterError
+            raise ParameterError(f"{type(self).__name__} '{self.name}': thermal must be a "
+                                 f"regmech.components.heat.ThermalMass(C, G, T_amb, T0, fade), got {th!r}")
+
+    # -- laws -------------------------------------------------------------------------------------
+    def relation(self, mode, quadrant, w_abs, t, left=False, q=None):
         """Equation of a non-stuck row: ``c_own lam + c_cpl lam_cpl = rhs``; returns
         (c_own, c_cpl, rhs, d rhs / d|w_rel|)."""
         if mode == FREE or mode == HELD:
             return 1.0, 0.0, 0.0, 0.0
-        tk, dk = self.kinetic(w_abs, t, left)
+        tk, dk = self.kinetic(w_abs, t, left) if q is None else self.kinetic(w_abs, t, left, q)
         return 1.0, 0.0, mode * tk, mode * dk
 
-    def kinetic(self, w_abs: float, t: float, left: bool = False) -> tuple[float, float]:
+    def kinetic(self, w_abs: float, t: float, left: bool = False, q=None) -> tuple[float, float]:
         """Kinetic capacity at relative speed ``w_abs`` >= 0 and its derivative d/dw."""
         raise NotImplementedError
 
-    def normal_force(self, t: float, left: bool = False) -> float:
+    def normal_force(self, t: float, left: bool = False, q=None) -> float:
         """Engagement measure: the device is Free when this is <= 0."""
         return 1.0
 
@@ -68,18 +152,24 @@ class FrictionDevice(DissipatesPower, Device):
         return self._values.get("peak", 1.0)
 
     def capacity_function(self):
-        """A fast closure ``(t, left) -> (fn, tau0, tau0_max)`` with the parameters bound
+        """A fast closure ``(t, left, q=None) -> (fn, tau0, tau0_max)`` with the parameters bound
         (the event functions call it at every root-finding iterate). A closure may say what it
         depends on besides constants: ``at.signals``, a tuple of the device's signals (without it,
         anything); the event functions then evaluate it once per segment when all of them are
         constant between their breakpoints (``hybrid.events``)."""
+        if self.law_inputs():
+            def at(t, left=False, q=None):
+                tau0, tau0_max = self.capacities(t, left, q)
+                return self.normal_force(t, left, q), tau0, tau0_max
+            return at
+
         def at(t, left=False):
             tau0, tau0_max = self.capacities(t, left)
             return self.normal_force(t, left), tau0, tau0_max
         return at
 
-    def capacities(self, t, left=False):
-        tau0 = self.kinetic(0.0, t, left)[0]
+    def capacities(self, t, left=False, q=None):
+        tau0 = (self.kinetic(0.0, t, left) if q is None else self.kinetic(0.0, t, left, q))[0]
         return tau0, self.peak_ratio() * tau0
 
     def linear_law(self):
@@ -90,9 +180,30 @@ class FrictionDevice(DissipatesPower, Device):
         relative speed (``k`` [m]: a constant friction coefficient times the geometry), capacities
         ``tau0 = tau_k`` and ``tau0_max = peak * tau0``. Compiled solvers (``solvers.ida_native``)
         evaluate the device from these numbers instead of calling its methods, so a subclass that
-        states another law (it overrides a method) gets None here.
+        states another law (it overrides a method) gets None here, and so does a device with inputs
+        from the state (``law_inputs``).
         """
         return None
+
+
+#: a commanded normal force (f_normalized [1] or fn [N]) at most this in magnitude is zero
+COMMAND_ZERO = 1e-12
+
+
+def _checked_command(dev, param, value, t, upper):
+    """A commanded normal force, refused when it is not finite or above ``upper`` (beyond round-off): the
+    same contract as a signal's (``signals``), said with the controller's name."""
+    cmd = dev._values[param]
+    value = float(value)
+    if not np.isfinite(value) or (upper is not None and value > upper * (1 + 1e-6)):
+        from ..errors import SimulationError
+        bound = "" if upper is None else f" above {upper:g}"
+        raise SimulationError(
+            f"{type(dev).__name__} '{dev.name}': its {param} from {cmd!r} is {value!r}{bound} at t={t:.9g}; "
+            f"keep the controller's output in range (clip(u, 0, 1) in its outputs) or raise fn_max")
+    # a command held at zero (clip(u, 0, 1) below its range) is zero to round-off only; its sign would
+    # engage and release the device at every evaluation (chattering between Free and sliding)
+    return 0.0 if abs(value) <= COMMAND_ZERO else value
 
 
 class _MuMixin:
@@ -101,6 +212,8 @@ class _MuMixin:
 
     mu_law = Param(None, check="any", optional=True, unit="1",
                    doc="friction law mu(|w_rel|), e.g. Stribeck(...); overrides mu and mu_table")
+    thermal = Param(None, check="any", optional=True,
+                    doc="heat.ThermalMass(C, G, T_amb, T0, fade): temperature state T [K] and fade mu * fade(T)")
 
     def _mu(self, w_abs):
         law = self._values.get("mu_law")
@@ -133,6 +246,7 @@ class _MuMixin:
 
     def validate(self):
         from .laws import FrictionLaw
+        self._check_thermal()
         law = self._values.get("mu_law")
         if law is not None and not isinstance(law, FrictionLaw):
             from ..errors import ParameterError
@@ -161,8 +275,9 @@ class Clutch(_MuMixin, FrictionDevice):
     peak = Param(1.0, check="positive", unit="1", doc="static over kinetic friction at w = 0 (>= 1)")
     cgeo = Param(1.0, check="nonnegative", unit="m", doc="geometry constant (effective radius x surfaces)")
     fn_max = Param(check="nonnegative", unit="N", doc="maximum normal force")
-    f_normalized = Param(1.0, check="signal", bounds=(None, 1.0), unit="1",
-                         doc="normalised normal force, <= 1 (<= 0: disengaged)",
+    f_normalized = Param(1.0, check="signal", bounds=(None, 1.0), unit="1", command=True,
+                         doc="normalised normal force, <= 1 (<= 0: disengaged); a signal of t or a controller's "
+                             "command (Controller.command)",
                          bounds_note="; the normal force is fn_max * f_normalized, so 1 is the full force fn_max and "
                                      "values <= 0 disengage the device (mode Free). Raise fn_max for a larger force")
     w_rel_start = Param(None, optional=True, unit="rad/s",
@@ -170,16 +285,24 @@ class Clutch(_MuMixin, FrictionDevice):
                             "fixed when given")
     relative_start_params = (None, "w_rel_start")
     flanges = (("flange_a", ROTATIONAL), ("flange_b", ROTATIONAL))
+    _force_param = "f_normalized"
 
-    def normal_force(self, t, left=False):
+    def normal_force(self, t, left=False, q=None):
+        if q is not None:
+            i = self._q_index("command")
+            if i is not None:
+                return self.fn_max * _checked_command(self, "f_normalized", q[i], t, 1.0)
         return self.fn_max * self.f_normalized.value(t, left)
 
-    def kinetic(self, w_abs, t, left=False):
-        fn = max(self.normal_force(t, left), 0.0)
+    def kinetic(self, w_abs, t, left=False, q=None):
+        fn = max(self.normal_force(t, left, q), 0.0)
         mu, dmu = self._mu(w_abs)
-        return mu * self.cgeo * fn, dmu * self.cgeo * fn
+        fade = self._fade(q)        # 1.0 without a thermal mass: the products below are then bit for bit as before
+        return fade * (mu * self.cgeo * fn), fade * (dmu * self.cgeo * fn)
 
     def capacity_function(self):
+        if self.law_inputs():
+            return FrictionDevice.capacity_function(self)
         sig, fn_max, k0, peak = self.f_normalized, self.fn_max, self._mu(0.0)[0] * self.cgeo, self.peak
 
         def at(t, left=False):
@@ -194,7 +317,7 @@ class Clutch(_MuMixin, FrictionDevice):
 
     def linear_law(self):
         mu = self._constant_mu()
-        if mu is None or self.one_way or not self._states_own_law(Clutch, self._LAW):
+        if mu is None or self.one_way or self.law_inputs() or not self._states_own_law(Clutch, self._LAW):
             return None
         return self.f_normalized, float(self.fn_max), mu * float(self.cgeo), float(self.peak)
 
@@ -211,9 +334,9 @@ class OneWayClutch(Clutch):
     one_way = True
     EPS0 = 1e-4
 
-    def capacities(self, t, left=False):
-        tau0, tau0_max = super().capacities(t, left)
-        if self.normal_force(t, left) <= 0:
+    def capacities(self, t, left=False, q=None):
+        tau0, tau0_max = super().capacities(t, left, q)
+        if self.normal_force(t, left, q) <= 0:
             return 0.0, self.EPS0 * self._mu(0.0)[0] * self.cgeo * self.fn_max
         return tau0, max(self.peak, 1.0 + self.EPS0) * tau0
 
@@ -253,26 +376,33 @@ class FrictionContact(_MuMixin, FrictionDevice):
     mu = Param(0.5, check="nonnegative", unit="1", doc="kinetic friction coefficient (ignored with mu_table)")
     mu_table = Param(None, check="table", optional=True, unit="(m/s, 1)", doc="(v_rel [m/s], mu) points for v_rel >= 0")
     peak = Param(1.0, check="positive", unit="1", doc="static over kinetic friction")
-    fn = Param(check="signal", unit="N", doc="normal force (number, signal or callable)")
+    fn = Param(check="signal", unit="N", command=True,
+               doc="normal force (number, signal or callable, or a controller's command)")
     w_rel_start = Param(None, optional=True, unit="m/s",
                         doc="start value of the relative speed v_rel = v_b - v_a, fixed when given")
     relative_start_params = (None, "w_rel_start")
     flanges = (("flange_a", TRANSLATIONAL), ("flange_b", TRANSLATIONAL))
     default_domain = TRANSLATIONAL
+    _force_param = "fn"
 
-    def normal_force(self, t, left=False):
+    def normal_force(self, t, left=False, q=None):
+        if q is not None:
+            i = self._q_index("command")
+            if i is not None:
+                return _checked_command(self, "fn", q[i], t, None)
         return self.fn.value(t, left)
 
-    def kinetic(self, w_abs, t, left=False):
-        fn = max(self.normal_force(t, left), 0.0)
+    def kinetic(self, w_abs, t, left=False, q=None):
+        fn = max(self.normal_force(t, left, q), 0.0)
         mu, dmu = self._mu(w_abs)
-        return mu * fn, dmu * fn
+        fade = self._fade(q)
+        return fade * (mu * fn), fade * (dmu * fn)
 
     _LAW = ("kinetic", "normal_force", "capacity_function", "capacities", "relation", "peak_ratio", "_mu")
 
     def linear_law(self):
         mu = self._constant_mu()
-        if mu is None or not self._states_own_law(FrictionContact, self._LAW):
+        if mu is None or self.law_inputs() or not self._states_own_law(FrictionContact, self._LAW):
             return None
         return self.fn, 1.0, mu, float(self.peak_ratio())
 
@@ -284,12 +414,15 @@ class BearingFriction(FrictionDevice):
 
     tau_table = Param(check="table", unit="(rad/s, N m)", doc="(w >= 0, friction torque) points")
     peak = Param(1.0, check="positive", unit="1", doc="break-away over kinetic torque at w = 0")
+    thermal = Param(None, check="any", optional=True,
+                    doc="heat.ThermalMass(C, G, T_amb, T0, fade): temperature state T [K], torque * fade(T)")
     flanges = (("flange", ROTATIONAL), ("support", ROTATIONAL, True))
 
     def rows(self):
         return [{"support": -1.0, "flange": 1.0}]
 
     def validate(self):
+        self._check_thermal()
         # a negative friction torque would drive the motion it should resist (and the stuck test
         # tau0_max - |lam| would fail from the start)
         tab = self._values.get("tau_table")
@@ -302,16 +435,17 @@ class BearingFriction(FrictionDevice):
             raise ParameterError(f"BearingFriction '{self.name}': parameter 'peak' must be >= 1 "
                                  f"(break-away over kinetic torque), got {self._values['peak']}")
 
-    def kinetic(self, w_abs, t, left=False):
+    def kinetic(self, w_abs, t, left=False, q=None):
         tab = self.tau_table
         ws, ts = tab[:, 0], tab[:, 1]
+        f = self._fade(q)
         if len(ws) == 1 or w_abs <= ws[0]:
-            return float(ts[0]), 0.0
+            return f * float(ts[0]), 0.0
         if w_abs >= ws[-1]:
-            return float(ts[-1]), 0.0
+            return f * float(ts[-1]), 0.0
         k = int(np.searchsorted(ws, w_abs, side="right") - 1)
         slope = (ts[k + 1] - ts[k]) / (ws[k + 1] - ws[k])
-        return float(ts[k] + slope * (w_abs - ws[k])), float(slope)
+        return f * float(ts[k] + slope * (w_abs - ws[k])), f * float(slope)
 
 
 class LossyGear(FrictionDevice):
@@ -387,7 +521,7 @@ class LossyGear(FrictionDevice):
             return (1.0 - eta1, bf1) if q > 0 else (1.0 - 1.0 / eta2, bf2)
         return (1.0 - 1.0 / eta2, -bf2) if q > 0 else (1.0 - eta1, -bf1)
 
-    def relation(self, mode, quadrant, w_abs, t, left=False):
+    def relation(self, mode, quadrant, w_abs, t, left=False, q=None):
         if mode == FREE or mode == HELD:
             return 1.0, 0.0, 0.0, 0.0
         k, b = self._quadrant_loss(mode, quadrant, self._interp(w_abs))

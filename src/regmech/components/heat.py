@@ -23,11 +23,19 @@ to ambient ``G`` [W/K])::
     C dT/dt = heat_flow(t) - G (T - T_amb)
 
 is ``temperature(res, name, C, G, T0, T_amb)``, after the run, exact for a
-heat flow linear between output instants. Not here (yet): a temperature that
-feeds back into the friction coefficient (fade). The friction laws are read
-by the hybrid layer as functions of the relative speed and time only, and a
-friction force is a constraint multiplier that no device law can read; a
-temperature state with fade needs both to reach the hybrid layer.
+heat flow linear between output instants (no feedback into the friction).
+
+Inside the DAE, with fade: ``Clutch(..., thermal=ThermalMass(C, G, T_amb, T0,
+fade))`` (also ``Brake``, ``OneWayClutch``, ``FrictionContact``, ``LinearBrake``,
+``BearingFriction``) gives the device a temperature state ``<name>.T`` [K]::
+
+    C dT/dt = P - G (T - T_amb),     P = lam * w_rel  (the power its friction absorbs, >= 0)
+
+in every mode (sliding: ``P = tau_k |w_rel|``; stuck, free: ``P = 0`` to round-off), and its
+friction coefficient is ``mu(|w_rel|) * fade(T)`` (``fade``: (T [K], factor) points, linear
+between them, constant beyond; capacities ``tau0`` and ``tau0_max`` fade too, so a hot
+stuck clutch breaks away earlier). Books: ``heat_stored = C (T - T0)`` and
+``heat_to_ambient = int G (T - T_amb) dt`` [J] add up to the dissipated ``heat``.
 """
 
 from __future__ import annotations
@@ -85,6 +93,65 @@ def temperature(res, name: str, C: float, G: float = 0.0, T0: float = 20.0, T_am
     return theta + T_amb
 
 
+class ThermalMass:
+    """A lumped thermal mass of a friction element, inside the DAE (module docstring)::
+
+        C dT/dt = P - G (T - T_amb),   mu_eff = mu(|w_rel|) * fade(T)
+
+    ``C`` [J/K] > 0 heat capacity, ``G`` [W/K] >= 0 conductance to ambient (0: adiabatic), ``T_amb``
+    [K] ambient temperature (default 293.15), ``T0`` [K] start temperature (default ``T_amb``),
+    ``fade`` (T [K], factor >= 0) points with increasing T (None: no fade; one point: a constant
+    factor), linear between them and constant beyond the ends.
+    """
+
+    def __init__(self, C: float, G: float = 0.0, T_amb: float = 293.15, T0: float | None = None, fade=None):
+        import math
+
+        from ..errors import ParameterError
+        T0 = T_amb if T0 is None else T0
+        for pname, val, ok, want in (("C", C, lambda v: v > 0, " > 0 [J/K]"), ("G", G, lambda v: v >= 0, " >= 0 [W/K]"),
+                                     ("T_amb", T_amb, lambda v: v > 0, " > 0 [K]"),
+                                     ("T0", T0, lambda v: v > 0, " > 0 [K]")):
+            if isinstance(val, bool) or not isinstance(val, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(val) or not ok(val):
+                raise ParameterError(f"ThermalMass: {pname} must be a finite number{want}, got {val!r}")
+        self.C, self.G, self.T_amb, self.T0 = float(C), float(G), float(T_amb), float(T0)
+        self.fade = None
+        if fade is not None:
+            try:
+                tab = np.atleast_2d(np.array(fade, dtype=float))
+            except (TypeError, ValueError):
+                tab = None
+            if tab is None or tab.ndim != 2 or tab.shape[1] != 2 or not np.all(np.isfinite(tab)) \
+                    or np.any(np.diff(tab[:, 0]) <= 0) or np.any(tab[:, 1] < 0):
+                raise ParameterError(f"ThermalMass: fade must be (T [K], factor >= 0) points with increasing T, "
+                                     f"got {fade!r}")
+            tab.setflags(write=False)
+            self.fade = tab
+
+    def factor(self, T: float) -> tuple[float, float]:
+        """``(fade(T), d fade / dT)`` [1, 1/K]."""
+        tab = self.fade
+        if tab is None:
+            return 1.0, 0.0
+        Ts, fs = tab[:, 0], tab[:, 1]
+        if len(Ts) == 1 or T <= Ts[0]:
+            return float(fs[0]), 0.0
+        if T >= Ts[-1]:
+            return float(fs[-1]), 0.0
+        k = int(np.searchsorted(Ts, T, side="right") - 1)
+        slope = (fs[k + 1] - fs[k]) / (Ts[k + 1] - Ts[k])
+        return float(fs[k] + slope * (T - Ts[k])), float(slope)
+
+    def rate(self, P: float, T: float) -> float:
+        """``dT/dt`` [K/s] at absorbed power ``P`` [W] and temperature ``T`` [K]."""
+        return (P - self.G * (T - self.T_amb)) / self.C
+
+    def __repr__(self) -> str:
+        return (f"ThermalMass(C={self.C:g}, G={self.G:g}, T_amb={self.T_amb:g}, T0={self.T0:g}"
+                f"{'' if self.fade is None else f', fade={self.fade.tolist()}'})")
+
+
 class DissipatesPower:
     """Mixin of devices that turn all the power they absorb into heat (friction, dampers)."""
 
@@ -94,7 +161,13 @@ class DissipatesPower:
         p = np.zeros(len(t))
         for tr, dr in zip(tau, de):
             p = p + np.asarray(tr, float) * np.asarray(dr, float)
-        return heat_signals(t, p)
+        out = heat_signals(t, p)
+        th = getattr(self, "_values", {}).get("thermal")
+        if th is not None and "T" in z:
+            T = np.asarray(z["T"], float)
+            out["heat_stored"] = th.C * (T - th.T0)
+            out["heat_to_ambient"] = accumulated(t, th.G * (T - th.T_amb))
+        return out
 
 
 class DissipatesInDamping:
@@ -108,4 +181,7 @@ class DissipatesInDamping:
         return heat_signals(t, d * np.asarray(de[0], float) ** 2)
 
 
-__all__ = ["DissipatesPower", "DissipatesInDamping", "accumulated", "heat_signals", "temperature", "HEAT_UNITS"]
+#: the extra signals of an element with a ``ThermalMass``
+THERMAL_UNITS = {**HEAT_UNITS, "heat_stored": "J", "heat_to_ambient": "J"}
+
+__all__ = ["ThermalMass", "THERMAL_UNITS", "DissipatesPower", "DissipatesInDamping", "accumulated", "heat_signals", "temperature", "HEAT_UNITS"]

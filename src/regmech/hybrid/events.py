@@ -14,7 +14,10 @@ Two functions per device, each crossing zero *downwards* when its mode must chan
 * lossy gears give their own pair (``gears.gear_events``).
 
 The capacities come from each device's ``capacity_function`` (``(t, left) -> (fn, tau0,
-tau0_max)``, its parameters bound), the law the component states.
+tau0_max)``, its parameters bound), the law the component states; a device whose laws read the
+state (a thermal mass's temperature, a controller's command as normal force:
+``compile.friction_inputs``) gets ``(t, left, q)`` with its inputs at the iterate's ``y``, so its
+engagement and break-away functions are functions of the state.
 """
 
 from __future__ import annotations
@@ -45,13 +48,15 @@ class EventFunctions:
         self._at_key, self._at_val = None, None
         self._at_segment = None                    # capacities at the segment's first call (``_at``)
         self._cap_fns = [d.capacity_function() for d in self.devices]
-        self._varying = [j for j, f in enumerate(self._cap_fns) if not _steady(f)]
+        # devices reading inputs from the state (``compile.friction_inputs``) are evaluated with them at each
+        # call (``_with_inputs``), never from the time-only caches
+        self._varying = [j for j, f in enumerate(self._cap_fns) if not _steady(f) and not self.inputs[j]]
         self._one_way = np.array([d.one_way for d in self.devices], bool)
         self._ev_key, self._ev_masks = None, None
         self._relief = []      # (row, holder's lam index, sign, tol): see Holding._relief_events
         self._small = None
         self._small_for, self._small_steps = None, None
-        if self.mf <= 8 and not self._coupled_rows:
+        if self.mf <= 8 and not self._coupled_rows and not self.has_inputs:
             Gc = self.G.tocsr()
             c = self.c
             self._small = [([int(c.iv[k]) for k in Gc.indices[Gc.indptr[j]:Gc.indptr[j + 1]]],
@@ -82,7 +87,8 @@ class EventFunctions:
         key = (t, left)
         if self._at_key != key:
             if self._at_segment is None:
-                vals = np.array([f(t, left) for f in self._cap_fns]).reshape(self.mf, 3)
+                vals = np.array([(0.0, 0.0, 0.0) if self.inputs[j] else f(t, left)
+                                 for j, f in enumerate(self._cap_fns)]).reshape(self.mf, 3)
                 self._at_segment = vals
             else:
                 vals = self._at_segment.copy()
@@ -165,6 +171,11 @@ class EventFunctions:
         lam = lam_all[self.offset:]
         modes = np.asarray(modes)
         fns, caps = self._at(t, left)
+        if self.has_inputs:
+            fns, caps = fns.copy(), caps.copy()
+            q = self.q_all(t, y)
+            for j in self._q_devs:
+                fns[j], caps[j, 0], caps[j, 1] = self._cap_fns[j](t, left, q[j])
         # masks depend on the segment's modes only: computed once per segment
         key = (modes.tobytes(), self.engaged.tobytes())
         if self._ev_key != key:

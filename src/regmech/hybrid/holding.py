@@ -154,7 +154,8 @@ class Holding:
         if len(holders) != 1 or self.devices[holders[0]].coupled or self.devices[holders[0]].one_way:
             return None
         h = holders[0]
-        tau0, tau0_max = self.devices[j].capacities(t, t >= c._t_right)
+        q = self.q_from(t, x, v, z)             # inputs of the laws from the state (None without any)
+        tau0, tau0_max = self._call(self.devices[j], "capacities", None if q is None else q[j], t, t >= c._t_right)
         for d in (FORWARD, BACKWARD):
             trial = np.array(modes, dtype=int)
             trial[j], trial[h] = STUCK, d

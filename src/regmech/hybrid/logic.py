@@ -59,7 +59,9 @@ class ModeLogic:
         self._relief = self._relief_events(t, y, yp, new, scale)
         self._ev_key = None
         self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
-        self.engaged = np.array([d.normal_force(t, False) > 0 for d in self.devices])
+        q = self.q_all(t, y) if self.has_inputs else None
+        self.engaged = np.array([self._call(d, "normal_force", None if q is None else q[j], t, False) > 0
+                                 for j, d in enumerate(self.devices)])
         changes = []
         if not initial:
             for j, dev in enumerate(self.devices):
@@ -78,6 +80,7 @@ class ModeLogic:
         left = False   # the new segment: right limits
         y0, yp0 = state
         x, v, a, lam, z = c.unpack(y0, yp0)
+        q = self.q_from(t, x, v, z)     # inputs of the laws from the state (None without any)
         new = old.copy()
         w = self.w_rel(v)
         arel = self.w_rel(a)
@@ -93,7 +96,7 @@ class ModeLogic:
         a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
-            engaged = dev.normal_force(t, left) > 0
+            engaged = self._call(dev, "normal_force", None if q is None else q[j], t, left) > 0
             if dev.coupled:
                 new[j] = gear_first_step(dev, int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
                                          initial, scale, arel[j])
@@ -161,6 +164,7 @@ class ModeLogic:
                         f"stuck devices and the motion source avoids it") from exc
                 continue
             lam_f = lam[self.offset:]
+            q = self.q_from(t, x, v, z)          # a command may read the speeds just locked
             changed = False
             for j, dev in enumerate(self.devices):
                 if dev.coupled:
@@ -180,12 +184,14 @@ class ModeLogic:
                     continue
                 if new[j] != STUCK:
                     continue
-                tau0, tau0_max = dev.capacities(t, left)
+                qj = None if q is None else q[j]
+                tau0, tau0_max = self._call(dev, "capacities", qj, t, left)
                 # a load within round-off of the capacity and still rising breaks away with the others
                 # (symmetric devices, e.g. two wheels on one open differential, reach it together)
                 tie = 1e-9 * tau0_max
                 if lam_f[j] > tau0_max * (1 + 1e-12) or (lam_f[j] > tau0_max - tie and lam_rate[j] > 0):
-                    new[j] = FORWARD if (not dev.one_way or dev.normal_force(t, left) > 0) else FREE
+                    new[j] = FORWARD if (not dev.one_way or self._call(dev, "normal_force", qj, t, left) > 0) \
+                        else FREE
                     changed = True
                 elif (lam_f[j] < -tau0_max * (1 + 1e-12) or (lam_f[j] < -tau0_max + tie and lam_rate[j] < 0)) \
                         and not dev.one_way:

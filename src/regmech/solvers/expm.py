@@ -229,6 +229,11 @@ def _nonlinear_components(c, t_start: float, t_end: float, samples: int) -> list
     if c.mf:
         speeds = (0.0, 1e-6, 1e-3, 0.1, 1.0, 10.0, 1e3, 1e6)
         for j, dev in enumerate(c.friction.devices):
+            if getattr(c.friction, "inputs", None) and c.friction.inputs[j]:
+                # a law reading the state (a thermal mass's temperature, a controller's command as normal
+                # force): its force is no input of the structural-matrix form
+                bad.append(f"{type(dev).__name__} '{dev.name}'")
+                continue
             if getattr(dev, "coupled", False):
                 # a row tied to another constraint force (lossy gear): linear per quadrant, but not a
                 # force input of the structural-matrix form
@@ -276,8 +281,9 @@ def check_linear(c, t_start: float, t_end: float) -> None:
             f"solver 'expm' integrates linear models only (constant mass, damping and stiffness matrices), but in "
             f"model '{c.model.name}' {shown} {'has a law' if len(bad) == 1 else 'have laws'} whose force derivatives "
             f"change with the state or time (nonlinear or time-varying stiffness/damping, speed-dependent friction, "
-            f"dead zones) or internal states. Use solver='ida' or a scipy solver for this model, or replace these "
-            f"components by linear ones (Spring, Damper, SpringDamper, Clutch with constant mu).")
+            f"dead zones) or internal states (a thermal mass, a controller). Use solver='ida' or a scipy solver for "
+            f"this model, or replace these components by linear ones (Spring, Damper, SpringDamper, Clutch with "
+            f"constant mu).")
 
 
 # ======================================================================= forcing

@@ -199,6 +199,9 @@ def friction_laws(fr):
         what = f"{type(dev).__name__} '{dev.name}'"
         if dev.coupled or dev.one_way:
             return f"{what} (lossy gears and one-way clutches run their mode logic in Python)"
+        if fr.inputs[j]:
+            return (f"{what} reads inputs from the state (a thermal mass's temperature or a controller's command "
+                    f"as its normal force), which the native kernels do not evaluate")
         law = dev.linear_law()
         if law is None:
             return f"{what} has a speed-dependent or user-defined friction law"

@@ -161,6 +161,14 @@ def ode_jacobian_pattern(c) -> sp.csc_matrix:
     pat = _PATTERNS.get(c)
     if pat is not None:
         return pat
+    fr = c.friction
+    if fr is not None and (fr.has_inputs or fr.state_rows):
+        # friction laws reading the state (a command, a temperature) and friction devices' own states (whose
+        # rates read the friction force, a function of everything in the rigid group): every entry may be
+        # nonzero. Such drivetrains are small; the grouped differences then cost one call per column
+        pat = sp.csc_matrix(np.ones((c.ode_size(), c.ode_size())))
+        _PATTERNS[c] = pat
+        return pat
     n = c.n
     Lx = _lift_pattern(c.Gp, c.Dx, c.Kx, n)
     Lv = _lift_pattern(c.Gpv, c.Dv, c.Kv, n)
