@@ -261,9 +261,20 @@ class ModeLogic:
         a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
         relief = {j for j, *_ in self._relief}
         m = np.asarray(modes)
-        return any(m[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol
-                   and j not in relief and not dev.coupled and not dev.one_way
-                   for j, dev in enumerate(self.devices))
+        at_rest = [j for j, dev in enumerate(self.devices)
+                   if m[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol
+                   and j not in relief and not dev.coupled and not dev.one_way]
+        if not at_rest:
+            return False
+        # held: its motion is fixed by the rigid rows and the stuck devices (a device that has just broken away
+        # at a load equal to its kinetic torque also starts with a_rel = 0, but nothing holds it: a slip
+        # controller's clutch, whose repeated run would find it stuck again at the tie)
+        c = self.c
+        rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
+        G = self.G.toarray()
+        base = np.vstack([rigid] + [G[k][None, :] for k in np.nonzero(m == STUCK)[0]])
+        r0 = np.linalg.matrix_rank(base) if base.shape[0] else 0
+        return any(np.linalg.matrix_rank(np.vstack([base, G[j][None, :]])) == r0 for j in at_rest)
 
     def _check_sliding_sides(self, t, y, yp, modes, scale):
         """Refuse a restart with a device sliding (or a lossy gear rolling) against its own direction beyond
