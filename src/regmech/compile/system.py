@@ -41,6 +41,11 @@ from .kernels import KernelGroup, template_for
 #: the acceleration-level (KKT) system counts as singular when its smallest LU pivot is below this fraction
 #: of the largest; a mass this many times lighter than another on its own coordinate trips it too
 PIVOT_TOL = 1e-13
+#: constraint blocks of the ODE form's lift up to this many entries are used dense (``_dummy_solve``,
+#: ``_independent_blocks``), by the inverse when its condition number is below DENSE_LIFT_COND (the product then
+#: loses at most some 1e-10 relative to the LU solve; gear and lever blocks are of condition 1 to 1e3)
+DENSE_LIFT = 4096
+DENSE_LIFT_COND = 1e6
 
 
 class CompiledSystem:
@@ -589,16 +594,29 @@ class CompiledSystem:
         """G_p[:, K_x] and G_pv[:, K_v], sliced once (slicing sparse matrices per call is slow)."""
         blocks = self.__dict__.get("_ind_blocks")
         if blocks is None:
-            blocks = self._ind_blocks = (self.Gp[:, self.Kx].tocsr(), self.Gpv[:, self.Kv].tocsr())
+            # a small model's blocks dense: scipy's sparse product costs some 10 us of dispatch per call, and
+            # the ODE form lifts u at every right-hand side and output row
+            blocks = self._ind_blocks = tuple(
+                B.toarray() if B.shape[0] * B.shape[1] <= DENSE_LIFT else B
+                for B in (self.Gp[:, self.Kx].tocsr(), self.Gpv[:, self.Kv].tocsr()))
         return blocks
 
     def _dummy_solve(self, level, rhs):
+        """The dummy coordinates from the constraints, ``G[:, D] w = rhs``: a small well-conditioned block
+        by its inverse (one product; SuperLU's solve costs 10 us of call overhead), else by its sparse LU."""
         cache = self.__dict__.setdefault("_dummy_lu", {})
-        lu = cache.get(level)
-        if lu is None:
+        solve = cache.get(level)
+        if solve is None:
             G, D = (self.Gp, self.Dx) if level == "x" else (self.Gpv, self.Dv)
-            lu = cache[level] = spla.splu(G[:, D].tocsc())
-        return lu.solve(rhs)
+            block = G[:, D].tocsc()
+            lu = spla.splu(block)
+            solve = lu.solve
+            if block.shape[0] * block.shape[1] <= DENSE_LIFT:
+                dense = block.toarray()
+                if np.linalg.cond(dense) < DENSE_LIFT_COND:
+                    solve = np.linalg.inv(dense).__matmul__
+            cache[level] = solve
+        return solve(rhs)
 
     def ode_rhs(self, t, u, modes):
         """``u' = g(t, u)``; a linear model without constraints takes ``compile.odeform``'s ``A u + b(t)``."""

@@ -180,6 +180,15 @@ class ScipyStepper(Stepper):
             self._dense = self.solver.dense_output()
         return self._dense(tq)
 
+    def interpolate_many(self, tqs):
+        # scipy's dense output evaluates many instants at once, element by element as for one (DOP853, Radau,
+        # BDF) or by one matrix product (RK45, RK23): one call per step instead of one per output instant
+        if len(tqs) <= 2:          # a large model's one or two outputs per step: no batch to gain, a copy to pay
+            return [self.interpolate(tq) for tq in tqs]
+        if self._dense is None:
+            self._dense = self.solver.dense_output()
+        return list(np.ascontiguousarray(self._dense(np.asarray(tqs, float)).T))
+
     def stats(self):
         return {"lu_decompositions": int(getattr(self.solver, "nlu", 0) or 0) - self._lu0}
 
