@@ -25,6 +25,12 @@ FADE = [(330.0, 1.0), (530.0, 0.7)]
 def slip_control(w_engine: float = 150.0, slip0: float = 40.0, t_close: float = 3.0, close_time: float = 2.0,
                  J_vehicle: float = 4.0, d_load: float = 0.4, C: float = 800.0, G: float = 4.0,
                  k: float = -0.01, T_i: float = 0.5):
+    """Launch clutch under PI slip control, its lining heating into fade, then locking (simulate ~8 s).
+
+    ``w_engine`` [rad/s] governed engine speed, ``slip0`` [rad/s] the slip held until ``t_close`` [s], then
+    ramped to zero over ``close_time`` [s]; ``J_vehicle`` [kg m^2], ``d_load`` [N m s/rad]; the clutch's thermal
+    mass ``C`` [J/K] with convection ``G`` [W/K]; the controller's gain ``k`` [1/(rad/s)] (negative: more slip,
+    less normal force) and integral time ``T_i`` [s] (module docstring)."""
     m = rm.Model("slip_control")
     ground = m.add(Fixed("ground"))
     engine = m.add(Speed("engine", w_ref=w_engine))
