@@ -127,6 +127,16 @@ class Holding:
         modes[dependent] = HELD
         return True
 
+    def _fixed_by(self, rows, j):
+        """Whether device ``j``'s relative motion is fixed by the rigid rows and the friction rows of the devices
+        ``rows`` (dense ranks: for the few small systems the mode logic asks this of)."""
+        c = self.c
+        rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
+        G = self.G.toarray()
+        base = np.vstack([rigid] + [G[k][None, :] for k in rows])
+        r0 = np.linalg.matrix_rank(base) if base.shape[0] else 0
+        return np.linalg.matrix_rank(np.vstack([base, G[j][None, :]])) == r0
+
     def _stick_first(self, t, x, v, z, modes, j, a_tol):
         """Modes in which device ``j``, reaching zero slip on a loop that a motion source drives through a
         stuck device ``h``, sticks while ``h`` slides; or None.
@@ -142,15 +152,8 @@ class Holding:
         c = self.c
         if c.n + c.mp + c.mv + self.mf > LOCK_DENSE_MAX or self.devices[j].coupled:
             return None
-        rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
-        G = self.G.toarray()
         stuck = [int(k) for k in np.nonzero(np.asarray(modes) == STUCK)[0] if k != j]
-
-        def fixes(rows):
-            base = np.vstack([rigid] + [G[k][None, :] for k in rows])
-            return np.linalg.matrix_rank(np.vstack([base, G[j][None, :]])) == np.linalg.matrix_rank(base)
-
-        holders = [h for h in stuck if fixes(stuck) and not fixes([k for k in stuck if k != h])]
+        holders = [h for h in stuck if self._fixed_by(stuck, j) and not self._fixed_by([k for k in stuck if k != h], j)]
         if len(holders) != 1 or self.devices[holders[0]].coupled or self.devices[holders[0]].one_way:
             return None
         h = holders[0]

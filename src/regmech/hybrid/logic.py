@@ -269,12 +269,8 @@ class ModeLogic:
         # held: its motion is fixed by the rigid rows and the stuck devices (a device that has just broken away
         # at a load equal to its kinetic torque also starts with a_rel = 0, but nothing holds it: a slip
         # controller's clutch, whose repeated run would find it stuck again at the tie)
-        c = self.c
-        rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
-        G = self.G.toarray()
-        base = np.vstack([rigid] + [G[k][None, :] for k in np.nonzero(m == STUCK)[0]])
-        r0 = np.linalg.matrix_rank(base) if base.shape[0] else 0
-        return any(np.linalg.matrix_rank(np.vstack([base, G[j][None, :]])) == r0 for j in at_rest)
+        stuck = [int(k) for k in np.nonzero(m == STUCK)[0]]
+        return any(self._fixed_by(stuck, j) for j in at_rest)
 
     def _check_sliding_sides(self, t, y, yp, modes, scale):
         """Refuse a restart with a device sliding (or a lossy gear rolling) against its own direction beyond

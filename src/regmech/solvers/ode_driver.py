@@ -1048,6 +1048,17 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     watch = EventWatch(c, guards, shortest_period(model)) if guards is not None else None
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
     growth = GrowthWatch(t_start, u, max_growth)
+
+    def settle(t, state, modes, crossed):
+        """The mode logic at an event or a breakpoint: its changes recorded (events, chatter guard, growth
+        watch); returns the restart row and the new modes."""
+        y, yp, new_modes, changes = fr.settle(t, state, modes, crossed=crossed)
+        for (comp, old, new, kind) in changes:
+            events.append(Event(t, comp, old, new, kind))
+            guard.record(t, comp)
+        if changes:
+            growth.mode_change()
+        return y, yp, new_modes
     extra = {"rejected": 0}
     t = t_start
     while True:
@@ -1078,13 +1089,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
                 for (comp, old, new, kind) in surf.cross(s_crossed):
                     events.append(Event(t, comp, old, new, kind))
             if fr is not None and np.any(f_crossed):
-                y, yp, new_modes, changes = fr.settle(t, (y_ev, yp_ev), modes, crossed=f_crossed)
-                for (comp, old, new, kind) in changes:
-                    events.append(Event(t, comp, old, new, kind))
-                    guard.record(t, comp)
-                if changes:
-                    growth.mode_change()
-                modes = new_modes
+                y, yp, modes = settle(t, (y_ev, yp_ev), modes, f_crossed)
                 u = c.ode_state(y)
                 out.row(t, y, yp, modes)
             if len(events) > max_events:
@@ -1098,14 +1103,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         t_stop = next(stop_iter)
         c._t_right = t_stop
         if fr:
-            y, yp = c.y_from_ode(t, u, modes)
-            y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
-            for (comp, old, new, kind) in changes:
-                events.append(Event(t, comp, old, new, kind))
-                guard.record(t, comp)
-            if changes:
-                growth.mode_change()
-            modes = new_modes
+            y, yp, modes = settle(t, c.y_from_ode(t, u, modes), modes, None)
             u = c.ode_state(y)
         elif rec is not None:
             y, yp = consistent_row(c, t, u, modes)
