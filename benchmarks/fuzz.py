@@ -184,7 +184,7 @@ def _cause(f):
     if kind in ("loss-supplies-power", "lossless-dissipates"):
         cls = (f.get("where") or "").split(" ")[0]
         return f"{kind}: {cls}"
-    if kind in ("wrong-answer", "disagreement", "range-accuracy", "convergent-accuracy"):
+    if kind in ("wrong-answer", "disagreement", "range-accuracy", "convergent-accuracy", "ill-conditioned"):
         return kind
     if kind in ("power-balance", "energy-books", "budget", "nonfinite"):
         return f"{kind}: {run}"

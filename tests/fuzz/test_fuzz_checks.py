@@ -291,3 +291,54 @@ def test_integrate_bounds_its_error_at_kinks_and_the_books_still_catch_a_fault()
     res = m.simulate(2.0, dt_out=1e-3, rtol=1e-8, solver="ida")
     bad = _Tampered(res, **{"damper.power": 0.99 * res["damper.power"]})
     assert "energy-books" in {f.kind for f in energy_checks(bad, m, "ida", rel=1e-4)}
+
+
+def test_a_difference_the_models_sensitivity_explains_is_ill_conditioned_and_no_other():
+    """Seed 20152 (a rattle of ~100 contacts): ida and DOP853 at rtol 1e-8 were 33-51 % of the wheel speed's
+    range apart while the rtol-1e-10 references agreed; a 1e-8 perturbation of the masses moves the
+    reference by 3 % of that range. ``conditioning`` reclassifies a pair's gross difference as
+    ``ill-conditioned`` only when a perturbation of the masses by the pair's rtol moves the reference by a
+    tenth of the difference or more. On a well-conditioned model (a damped oscillator) the real probe moves
+    the reference by about the perturbation, so a planted wrong answer stays one."""
+    m = _damped_model()
+    spec = ModelSpec("damped", [], 2.0, 1e-3, [])
+    spec.build = _damped_model
+    res = {label: m.simulate(2.0, dt_out=1e-3, rtol=rtol, solver=solver)
+           for label, solver, rtol in (("ida", "ida", 1e-8), ("ida_ref", "ida", 1e-10),
+                                       ("dop853_ref", "scipy:DOP853", 1e-10))}
+    wrong = _Tampered(res["ida"], **{"J.w": res["ida"]["J.w"] + 0.05 * np.ptp(res["ida"]["J.w"])})
+    results = dict(res, ida=wrong)
+    runs = (("ida", "ida", {"rtol": 1e-8}), ("dop853_ref", "scipy:DOP853", {"rtol": 1e-10}),
+            ("ida_ref", "ida", {"rtol": 1e-10}))
+    outs = [fuzz.RunOutcome(label, solver, dict(opts), "ok", claim_rel=1e4 * opts["rtol"]) for label, solver, opts in runs]
+    found = agreement(outs, results, m, spec)
+    assert {f.kind for f in found} == {"wrong-answer"}, found
+    # the real probe: a 1e-8 perturbation of the mass moves the reference by about 1e-8, not 5e-3
+    kept = fuzz.conditioning(found, outs, results, m, spec, runs=runs)
+    assert [f.kind for f in kept] == [f.kind for f in found]
+    moved = fuzz._probe(spec, m, "dop853_ref", results["dop853_ref"], runs, 1e-8, None, None)
+    assert moved is not None and moved[0] < 1e-6, moved
+    # a model that amplifies a 1e-8 perturbation to 1e-2 of the range explains a 5e-2 difference ...
+    explained = fuzz.conditioning(found, outs, results, m, spec, probe=lambda delta: (1e-2, "J.w"))
+    assert {f.kind for f in explained} == {"ill-conditioned"}
+    assert all("perturbed by +-1e-08" in f.detail for f in explained)
+    # ... but not a difference a hundred times larger than what it moves, when that move keeps within a
+    # hundred times the pair's claims (1e-4 + 1e-6 here)
+    assert {f.kind for f in fuzz.conditioning(found, outs, results, m, spec, probe=lambda d: (1e-4, "J.w"))} \
+        == {"wrong-answer"}
+    # a move beyond a hundred times the claims voids them, however large the difference (a chaotic rattle
+    # saturates: seed 20152's pairs differ by up to 0.69, a 1e-8 perturbation moves the reference by 0.05)
+    far = _Tampered(res["ida"], **{"J.w": res["ida"]["J.w"] + 5.0 * np.ptp(res["ida"]["J.w"])})
+    far_found = agreement(outs, dict(results, ida=far), m, spec)
+    assert {f.kind for f in fuzz.conditioning(far_found, outs, dict(results, ida=far), m, spec,
+                                              probe=lambda d: (0.05, "J.w"))} == {"ill-conditioned"}
+    assert {f.kind for f in fuzz.conditioning(far_found, outs, dict(results, ida=far), m, spec,
+                                              probe=lambda d: (0.005, "J.w"))} == {"wrong-answer"}
+    # and a probe that does not return explains nothing
+    assert {f.kind for f in fuzz.conditioning(found, outs, results, m, spec, probe=lambda d: None)} == {"wrong-answer"}
+
+
+def test_perturb_masses_scales_every_body_and_keeps_the_rest():
+    m = fuzz.perturb_masses(_damped_model(), 1e-3)
+    assert m["J"].J == pytest.approx(0.5 * (1 + 1e-3), rel=1e-12)
+    assert m["spring"].c == 40.0
