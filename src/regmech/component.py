@@ -562,6 +562,10 @@ class Device(Component):
         ``Event`` of kind "contact". Default: none (a smooth law)."""
         return []
 
+    #: the ``Event`` kind of a change of state of this device's switching surfaces: "contact" (a backlash,
+    #: a stop, a gap), "limit" (a controller's output reaching or leaving its limits)
+    switching_kind: ClassVar[str] = "contact"
+
     def switching_active(self) -> bool:
         """False when this instance's law has no kink after all (a play below ``B_EPS`` is a plain spring):
         its surfaces are then not watched. Decided per instance from the parameters."""

@@ -30,6 +30,7 @@ from .modes import MODE_NAMES
 
 DRIVING_NAMES = {1: "flange_a drives", -1: "flange_b drives"}
 CONTACT_NAMES = {0: "open", 1: "contact +", -1: "contact -"}
+LIMIT_NAMES = {0: "within limits", 1: "at upper limit", -1: "at lower limit"}
 
 
 @dataclass(frozen=True)
@@ -42,8 +43,9 @@ class Event:
     flange, +1 flange_a (the sun of a planetary set), -1 flange_b (the ring). ``kind`` "contact": a
     device with a piecewise law (``Backlash``, ``ElastoGap``, ``EndStop``, ``HardStop``) changed its
     contact state (``Device.switching_surfaces``): 0 open, +1 in contact on the positive side (the
-    upper stop, ``phi_rel - phi_rel0 >= b/2``), -1 on the negative side. Filter on ``kind`` to compare
-    mode sequences.
+    upper stop, ``phi_rel - phi_rel0 >= b/2``), -1 on the negative side. ``kind`` "limit": a
+    controller's output (``PI``, ``PICommand``, ``Driver``) reached or left a limit: +1 at the upper
+    limit, -1 at the lower one, 0 between them. Filter on ``kind`` to compare mode sequences.
     """
 
     t: float
@@ -60,6 +62,9 @@ class Event:
         if self.kind == "contact":
             return (f"t={self.t:.6g}{err}: {self.component} contact: {CONTACT_NAMES.get(self.old_mode, self.old_mode)} "
                     f"-> {CONTACT_NAMES.get(self.new_mode, self.new_mode)}")
+        if self.kind == "limit":
+            return (f"t={self.t:.6g}{err}: {self.component} output: {LIMIT_NAMES.get(self.old_mode, self.old_mode)} "
+                    f"-> {LIMIT_NAMES.get(self.new_mode, self.new_mode)}")
         if self.kind == "driving side":
             return (f"t={self.t:.6g}{err}: {self.component} driving side: "
                     f"{DRIVING_NAMES.get(self.old_mode, self.old_mode)} -> {DRIVING_NAMES.get(self.new_mode, self.new_mode)}")

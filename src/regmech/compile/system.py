@@ -139,6 +139,8 @@ class CompiledSystem:
         # group is entry ``start + k * n + i``; ``surface_owner`` names its device and state code
         self.surface_groups = []
         self.surface_owner: list[tuple[str, int]] = []
+        #: device name -> the ``Event`` kind of its surfaces' changes (``Device.switching_kind``)
+        self.surface_kinds: dict[str, str] = {}
         for g in self.groups:
             if g.tpl.surf_fn is None:
                 continue
@@ -147,6 +149,7 @@ class CompiledSystem:
                 continue
             self.surface_groups.append((g, len(self.surface_owner), None if len(active) == g.n else active))
             self.surface_owner += [(g.devices[i].name, code) for code in g.tpl.surf_codes for i in active]
+            self.surface_kinds.update((g.devices[i].name, g.devices[i].switching_kind) for i in active)
         self.n_surf = len(self.surface_owner)
 
     def _build_layout(self):

@@ -11,9 +11,10 @@ Each function is ``side_k * g_k`` with ``side_k`` the sign of ``g_k`` at the sta
 crossing zero downwards when the state leaves that side (one direction, as the friction functions:
 an event function changing sign at the restart would fire again at once). At a crossing the crossed
 sides are flipped (the new segment starts on the surface, on the new side by construction, whatever
-the round-off of ``g`` there), and each device whose state changed gives an ``Event`` of kind
-"contact" (state codes: 0 open, the surface's code in contact, e.g. +1 / -1 for the upper / lower
-side of a backlash or an end stop).
+the round-off of ``g`` there), and each device whose state changed gives an ``Event`` of its
+``switching_kind``: "contact" (state codes: 0 open, the surface's code in contact, e.g. +1 / -1 for
+the upper / lower side of a backlash or an end stop) or "limit" (a controller's output at its upper
+limit +1, at its lower one -1, between them 0).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ class SurfaceSet:
         for k, (name, code) in enumerate(self.owner):
             devices.setdefault(name, []).append((k, code))
         self._devices = devices
+        self._kinds = getattr(c, "surface_kinds", {})
 
     def reset(self):
         """Forget a crossing of a previous run (a run starts from the surfaces' signs alone)."""
@@ -77,7 +79,8 @@ class SurfaceSet:
         after = self.states(sides)
         self.sides = sides
         self._flipped = (idx, sides[idx])
-        return [(name, before[name], after[name], CONTACT) for name in before if before[name] != after[name]]
+        return [(name, before[name], after[name], self._kinds.get(name, CONTACT)) for name in before
+                if before[name] != after[name]]
 
 
 class Guards:
