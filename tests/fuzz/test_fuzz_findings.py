@@ -557,3 +557,48 @@ def test_speed_source_with_a_callable_reference_at_a_tight_tolerance():
     ts = np.linspace(0.0, 0.6, 301)
     assert max(abs(f.derivative(t) - (-0.4406 * math.exp(-t / 0.08126) / 0.08126)) - f.derivative_noise(t)
                for t in ts) <= 1e-12
+
+
+def _model_10484():
+    """Fuzz seed 10484's model, written out (a bearing with a steep table on J1, two wheels, elastic shafts)."""
+    from regmech.components import BearingFriction, Force, Mass, MagicFormulaWheel, Wheel
+    m = rm.Model("fuzz_10484")
+    J1 = m.add(Inertia('J1', J=0.0131, w0=-1.951))
+    drive1 = m.add(Torque('drive1', tau=lambda t: 43.45 + 72.81 * math.sin(14.36 * t + 2.604)))
+    bearing1 = m.add(BearingFriction('bearing1', tau_table=[(0.0, 22.33), (3.564, 1.009)], peak=1.459))
+    drive2 = m.add(Torque('drive2', tau=lambda t: -6.9 + -8.968 * math.tanh((t - 0.43) / 0.1054)))
+    M1 = m.add(Mass('M1', m=405.2))
+    M2 = m.add(Mass('M2', m=0.5911))
+    sd1 = m.add(SpringDamper('sd1', c=51.8, d=5.766, domain='translational'))
+    wheel1 = m.add(Wheel('wheel1', radius=0.9583, J=2.478, m_axle=39.46, c_tyre=11150.0, d_tyre=820.6, mu=1.034, peak=1.25, fn=lambda t: 2.706 + 0.6384 * (1.0 - math.exp(-t / 0.254)), w0=11.0, v0=10.54))
+    shaft1 = m.add(Shaft('shaft1', stiffness=4.816, damping=0.0136))
+    mfw1 = m.add(MagicFormulaWheel('mfw1', radius=0.8501, J=0.1456, fn=1689.0, D=0.547, w0=0.1621))
+    shaft2 = m.add(Shaft('shaft2', stiffness=9.266, damping=0.00397))
+    push1 = m.add(Force('push1', f=Table([(0.0, -0.6863), (0.183, -15.52), (0.4733, -0.1832)])))
+    m.connect(drive1.flange, J1.flange_a)
+    m.connect(bearing1.flange, J1.flange_a)
+    m.connect(drive2.flange, J1.flange_a)
+    m.connect(sd1.flange_a, M1.flange_b)
+    m.connect(sd1.flange_b, M2.flange_b)
+    m.connect(wheel1.axle, M2.flange_a)
+    m.connect(shaft1.flange_a, J1.flange_a)
+    m.connect(shaft1.flange_b, wheel1.hub)
+    m.connect(mfw1.axle, M1.flange_a)
+    m.connect(shaft2.flange_a, wheel1.hub)
+    m.connect(shaft2.flange_b, mfw1.hub)
+    m.connect(push1.flange, wheel1.axle)
+    return m
+
+
+def test_ida_relocates_a_root_from_a_row_that_follows_the_law():
+    """Seed 10484: the bearing on J1 (friction falling from 22.3 to 1.0 N m within 3.56 rad/s) reverses at
+    t = 0.42413449 s (DOP853, Radau, ida at rtol 1e-12 on a coarse grid). IDA at rtol 1e-10 with dt_out = 3.5e-5
+    passed the table's knee one step before the reversal; the relocation restarted from the output row just
+    before the crossing step, a row interpolated on the knee-straddling step, and left the reversal 3.6e-6 s
+    late (0.05 rad/s, 2.9e-5 of J1.w's range). The restart now steps back past rows that depart from the law."""
+    m = _model_10484()
+    ref = m.simulate(0.6983, dt_out=0.6983 / 500, solver="scipy:Radau", rtol=1e-10, max_steps=100000)
+    fine = m.simulate(0.6983, dt_out=3.4915e-05, solver="ida", rtol=1e-10)
+    t_ref = [e.t for e in ref.events if e.component == "bearing1"]
+    t_fine = [e.t for e in fine.events if e.component == "bearing1"]
+    assert len(t_fine) == len(t_ref) and np.abs(np.subtract(t_fine, t_ref)).max() < 1e-8, (t_fine, t_ref)

@@ -263,6 +263,9 @@ RELOCATE_MISMATCH = 10.0
 RELOCATE_SHRINK = 8.0
 #: most re-integrations per root (``_relocate_root``)
 RELOCATE_ROUNDS = 3
+#: output rows a relocation's restart may step back past because they depart from the law; beyond, it restarts
+#: from the segment start
+RELOCATE_BACK_ROWS = 400
 
 
 #: signal classes whose value is a function of time and of their (scalar) attributes alone
@@ -750,7 +753,8 @@ def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, s
     all the way, and the stick located on that step's interpolant came 2.2 ms early, at rtol 1e-8 and 1e-10
     alike (the ODE-form solvers have ``ode_driver._relocate`` for the same class). Detected by
     ``_law_mismatch`` at the root; then the segment is integrated again from the last output row at or before
-    the crossing step's start (or the segment start), with steps bounded by ``1 / RELOCATE_SHRINK`` of that
+    the crossing step's start that follows the law itself (the same test: rows interpolated on a step that
+    straddled a knee do not; at most ``RELOCATE_BACK_ROWS`` of them, else the segment start), with steps bounded by ``1 / RELOCATE_SHRINK`` of that
     step, up to that step's end, and the root is located on those steps (at most ``RELOCATE_ROUNDS`` times,
     until the law is followed). The re-integration's rows replace the original ones after its start. A
     re-integration that finds no root keeps the original (the root stands as found).
@@ -775,6 +779,20 @@ def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, s
         T = np.asarray(sol.t)
         n_out = len(T) - 1                      # the last row is the root's
         rows = [i for i in range(1, n_out) if T[i] <= t_a and record[min(i, len(record) - 1)]]
+        # a row on a step that crossed a knee carries that step's error (its interpolant, not the law): the
+        # restart goes back past the rows whose accelerations depart from the law as the crossing step's did
+        # (fuzz seed 10484 at dt_out 3.5e-5: a bearing table's knee passed one step before the reversal; the
+        # restart from the row just before the crossing step left the reversal 3.6e-6 s late, 0.05 rad/s)
+        back = 0
+        while rows and back < RELOCATE_BACK_ROWS:
+            i = rows[-1]
+            if _law_mismatch(c, float(T[i]), np.asarray(sol.y[i]), np.asarray(sol.yp[i]), modes, h, rtol,
+                             atol_vec) <= RELOCATE_MISMATCH:
+                break
+            rows.pop()
+            back += 1
+        if back >= RELOCATE_BACK_ROWS:
+            rows = []                           # far back: from the segment start
         if rows:
             i_r = rows[-1]
             t_r = float(T[i_r])
