@@ -602,3 +602,55 @@ def test_ida_relocates_a_root_from_a_row_that_follows_the_law():
     t_ref = [e.t for e in ref.events if e.component == "bearing1"]
     t_fine = [e.t for e in fine.events if e.component == "bearing1"]
     assert len(t_fine) == len(t_ref) and np.abs(np.subtract(t_fine, t_ref)).max() < 1e-8, (t_fine, t_ref)
+
+
+def _model_30252():
+    """Fuzz seed 30252's model, written out: a brake with a sine normal force on J1 and, through a limited-slip
+    differential whose lock is stuck, a bearing holding the same motion (holding in turn)."""
+    from regmech.components import BearingFriction, Brake, Fixed, Force, Mass
+    from regmech.components.laws import Stribeck
+    m = rm.Model("fuzz_30252")
+    J1 = m.add(Inertia('J1', J=0.01929))
+    sbrake1 = m.add(Brake('sbrake1', mu_law=Stribeck(mu_s=0.3263, mu_k=0.3128, w_s=0.04234, mu_v=0.003357, delta=1.0), cgeo=0.912, fn_max=232.3, f_normalized=Sine(amplitude=0.4258, freq_hz=30.92, phase=1.198, offset=0.548, start_time=0.0)))
+    M1 = m.add(Mass('M1', m=204.5))
+    push1 = m.add(Force('push1', f=lambda t: -2.793 + -0.438 * math.tanh((t - 0.1168) / 0.05935)))
+    lsd1 = m.add(LimitedSlipDifferential('lsd1', ratio=4.626, preload=6958.0, mu=0.1056, cgeo=0.05, peak=1.01, J_side=0.001826))
+    bearing1 = m.add(BearingFriction('bearing1', tau_table=[(0.0, 81.18)], peak=1.237))
+    J2 = m.add(Inertia('J2', J=0.0006459, w0=0.0, phi0=-0.06918))
+    lgear1 = m.add(LossyGear('lgear1', ratio=-2.236, loss_table=[[0.0, 1.0, 1.0, 0.0, 0.0], [0.1557, 0.5425, 0.8898, 0.0, 0.0], [10.89, 0.8058, 0.7527, 4.12, 56.08]]))
+    shaft1 = m.add(Shaft('shaft1', stiffness=0.06467, damping=0.0))
+    fixed = m.add(Fixed('fixed'))
+    J3 = m.add(Inertia('J3', J=2.069, w0=3.275))
+    shaft2 = m.add(Shaft('shaft2', stiffness=39.05, damping=0.005118))
+    m.connect(sbrake1.flange, J1.flange_a)
+    m.connect(push1.flange, M1.flange_a)
+    m.connect(lsd1.carrier, J1.flange_b)
+    m.connect(bearing1.flange, lsd1.right)
+    m.connect(lgear1.flange_a, lsd1.right)
+    m.connect(lgear1.flange_b, J2.flange_a)
+    m.connect(shaft1.flange_a, lsd1.left)
+    m.connect(shaft1.flange_b, fixed.flange)
+    m.connect(shaft2.flange_a, J1.flange_b)
+    m.connect(shaft2.flange_b, J3.flange_a)
+    return m
+
+
+@pytest.mark.parametrize("solver", ["ida", "scipy:DOP853"])
+def test_a_holder_whose_capacity_falls_to_its_load_breaks_away(solver):
+    """Seed 30252: the brake holds J1 alone (the bearing Held); its capacity mu_s cgeo fn_max f(t) falls with
+    the sine normal force. The crossing capacity = load was located (to 1e-15), the brake broke away, and
+    settle's second run re-stuck it: its tie test read the load's rate alone (0) and not the capacity's
+    (falling). The brake then held 28.9 N m with a capacity down to 8.5 N m for the rest of the run, on
+    every solver. A stuck device never holds more than its static capacity; IDA and DOP853 agree."""
+    m = _model_30252()
+    res = m.simulate(0.5345, dt_out=0.00133625, solver=solver, rtol=1e-10, max_steps=400000)
+    f = 0.548 + 0.4258 * np.sin(2 * np.pi * 30.92 * res.t + 1.198)
+    capacity = 0.3263 * 0.912 * 232.3 * f             # mu_s cgeo fn_max f_normalized(t)
+    stuck = res["sbrake1.mode"] == 0
+    over = np.abs(res["sbrake1.tau"][stuck]) - capacity[stuck]
+    assert over.max() <= 1e-6 * capacity.max(), over.max()
+    other = m.simulate(0.5345, dt_out=0.00133625, solver="scipy:Radau" if solver == "ida" else "ida", rtol=1e-10,
+                       max_steps=100000)
+    grid = output_grid(0.0, 0.5345, 0.00133625)
+    w, w_other = sample(res.t, res["J1.w"], grid), sample(other.t, other["J1.w"], grid)
+    assert np.abs(w - w_other).max() < 1e-5 * np.ptp(w_other)

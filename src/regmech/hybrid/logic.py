@@ -189,11 +189,17 @@ class ModeLogic:
                 # a load within round-off of the capacity and still rising breaks away with the others
                 # (symmetric devices, e.g. two wheels on one open differential, reach it together)
                 tie = 1e-9 * tau0_max
-                if lam_f[j] > tau0_max * (1 + 1e-12) or (lam_f[j] > tau0_max - tie and lam_rate[j] > 0):
+                # at a tie the load breaks away when it rises faster than the capacity: a capacity falling under a
+                # steady load (a normal force passing its minimum) is a break-away too (fuzz seed 30252: a brake
+                # whose crossing was found broke away, was re-stuck by settle's second run, whose test read the
+                # load's rate alone, and held 28.9 N m with a capacity falling to 8.5 N m: a silently wrong run)
+                at_tie = abs(abs(lam_f[j]) - tau0_max) <= tie
+                cap_rate = self._capacity_rate(dev, qj, t, left, tau0_max) if at_tie else 0.0
+                if lam_f[j] > tau0_max * (1 + 1e-12) or (lam_f[j] > tau0_max - tie and lam_rate[j] > cap_rate):
                     new[j] = FORWARD if (not dev.one_way or self._call(dev, "normal_force", qj, t, left) > 0) \
                         else FREE
                     changed = True
-                elif (lam_f[j] < -tau0_max * (1 + 1e-12) or (lam_f[j] < -tau0_max + tie and lam_rate[j] < 0)) \
+                elif (lam_f[j] < -tau0_max * (1 + 1e-12) or (lam_f[j] < -tau0_max + tie and lam_rate[j] < -cap_rate)) \
                         and not dev.one_way:
                     new[j] = BACKWARD
                     changed = True
@@ -251,6 +257,12 @@ class ModeLogic:
         # the relief events of the modes found (a repeated run reads them as the segment's)
         self._relief = self._relief_events(t, y, yp, new, scale)
         return y, yp, new, scale
+
+    def _capacity_rate(self, dev, qj, t, left, tau0_max):
+        """d tau0_max / dt of a device at t [N m/s], by a forward difference in time at the same state (the
+        capacity moves with its normal-force signal; a command read from the state keeps its value)."""
+        dt = 1e-7 * max(1.0, abs(t))
+        return (self._call(dev, "capacities", qj, t + dt, left)[1] - tau0_max) / dt
 
     def _held_sliding(self, y, yp, modes, scale):
         """Whether a device slides at zero slip with no relative acceleration (held there by others) and no
