@@ -654,3 +654,57 @@ def test_a_holder_whose_capacity_falls_to_its_load_breaks_away(solver):
     grid = output_grid(0.0, 0.5345, 0.00133625)
     w, w_other = sample(res.t, res["J1.w"], grid), sample(other.t, other["J1.w"], grid)
     assert np.abs(w - w_other).max() < 1e-5 * np.ptp(w_other)
+
+
+def _model_40004():
+    """Fuzz seed 40004's model, written out: a DC motor driving a two-speed Gearbox (lossy gears) and a
+    clutch, a backlash to the ground, a translational spring chain."""
+    from regmech.components import Backlash, DCMotor, ElastoBacklash, Fixed, Gearbox, Mass, Spring
+    from regmech.signals import Constant
+    m = rm.Model("fuzz_40004")
+    J1 = m.add(Inertia('J1', J=5.277, w0=0.0, phi0=-0.1619))
+    clutch1 = m.add(Clutch('clutch1', mu=0.4874, peak=1.512, cgeo=0.1053, fn_max=5.541, f_normalized=Step(height=-0.2465, start_time=1.151, offset=0.8118)))
+    J2 = m.add(Inertia('J2', J=0.04848))
+    M1 = m.add(Mass('M1', m=0.8492))
+    M2 = m.add(Mass('M2', m=0.6768, v0=0.1147))
+    ebl1 = m.add(ElastoBacklash('ebl1', c=14.87, d=0.1969, b=0.0, domain='translational'))
+    dcm1 = m.add(DCMotor('dcm1', u=Constant(0.2638), R=1.123, L=0.002237, k=1.035))
+    M3 = m.add(Mass('M3', m=20.48))
+    spring1 = m.add(Spring('spring1', c=12.07, domain='translational'))
+    bl1 = m.add(Backlash('bl1', c=48.09, b=0.0))
+    fixed = m.add(Fixed('fixed'))
+    shaft1 = m.add(Shaft('shaft1', stiffness=0.08634, damping=0.003378))
+    gbox1 = m.add(Gearbox('gbox1', ratios=[-1.336, 0.7186], gear=[(0.0, 1), (0.2891, 2)], capacity=0.3403, efficiency=[0.9832, 0.9982], J_in=3.417, J_out=0.2085, J_gear=0.1113, release_time=0.1119, engage_time=0.2908, shift_delay=0.1015))
+    J3 = m.add(Inertia('J3', J=4.803, w0=0.0, phi0=0.003764))
+    m.connect(clutch1.flange_a, J1.flange_b)
+    m.connect(clutch1.flange_b, J2.flange_a)
+    m.connect(ebl1.flange_a, M2.flange_b)
+    m.connect(ebl1.flange_b, M1.flange_b)
+    m.connect(dcm1.flange, J1.flange_a)
+    m.connect(spring1.flange_a, M2.flange_b)
+    m.connect(spring1.flange_b, M3.flange_b)
+    m.connect(bl1.flange_a, J2.flange_b)
+    m.connect(bl1.flange_b, fixed.flange)
+    m.connect(shaft1.flange_a, J2.flange_a)
+    m.connect(shaft1.flange_b, J1.flange_a)
+    m.connect(gbox1.flange_a, J1.flange_b)
+    m.connect(gbox1.flange_b, J3.flange_b)
+    return m
+
+
+def test_a_stuck_gear_at_the_edge_of_its_capacity_breaks_away_when_its_load_grows():
+    """Seed 40004: at the start the gearbox's unselected gear 2 (a lossy gear whose loss is proportional to its
+    load) sticks at rest with no load; the DC motor's current, and so its load, grows from zero. Its
+    break-away function starts at zero and falls: IDA broke it away on round-off at t = 2e-20 s, the ODE-form
+    solvers kept it stuck until the shift at 0.2891 s, holding 0.24 N m that its free idler could not react,
+    with the whole drivetrain at rest (J2.w 99 % of its range apart at 1.2 s). The mode logic probes such a
+    device a moment later and breaks it away now; the solvers agree and the input turns from the start."""
+    m = _model_40004()
+    grid = output_grid(0.0, 1.35, 0.0031690140845070424)
+    runs = {s: m.simulate(1.35, dt_out=0.0031690140845070424, solver=s, rtol=1e-9) for s in ("ida", "scipy:DOP853")}
+    w = {s: sample(r.t, r["J2.w"], grid) for s, r in runs.items()}
+    assert np.abs(w["ida"] - w["scipy:DOP853"]).max() < 1e-5 * np.ptp(w["ida"])
+    for res in runs.values():
+        j = np.searchsorted(res.t, 0.2)
+        assert res["J1.w"][j] > 1e-3                       # the motor turns the input before the shift
+        assert res["gbox1.gear2.mode"][j] != 0             # the unselected gear rolls with its idler

@@ -22,6 +22,12 @@ from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
 from .gears import gear_first_step
 
 
+#: a stuck device within this fraction of its capacity is probed a moment later (``_probe_breakaways``)
+PROBE_EDGE = 1e-6
+#: the probe's time step, relative to max(1, |t|) [s]
+PROBE_DT = 1e-7
+
+
 class ModeLogic:
     """``settle``: the event iteration of a ``FrictionSet`` (mixin)."""
 
@@ -142,6 +148,7 @@ class ModeLogic:
         # 2. stuck devices: holding torques of the whole stuck set from one KKT solve; every device
         #    beyond its tau0_max breaks away at once (as in one Modelica event iteration), then repeat
         known = None
+        probed = False
         passes = 4 * self.mf + 4
         changed_in = np.zeros(self.mf, int)     # passes in the second half in which each device changed
         for k in range(passes):
@@ -243,6 +250,13 @@ class ModeLogic:
                         else:
                             new[j] = FORWARD if a_now[j] > 0 else BACKWARD
                         changed = True
+            if not changed and not probed:
+                # a stuck device at the edge of its capacity whose load outgrows it at once: its event function
+                # starts the segment at zero and falls, a crossing no solver reports (``_probe_breakaways``)
+                probed = True
+                for j, d in self._probe_breakaways(t, x, v, z, new, a, lam, dz, left):
+                    new[j] = d
+                    changed = True
             if not changed:
                 break
             if 2 * k >= passes:
@@ -257,6 +271,62 @@ class ModeLogic:
         # the relief events of the modes found (a repeated run reads them as the segment's)
         self._relief = self._relief_events(t, y, yp, new, scale)
         return y, yp, new, scale
+
+    def _probe_breakaways(self, t, x, v, z, modes, a, lam, dz, left):
+        """``[(j, direction)]``: the stuck devices at the edge of their capacity (within ``PROBE_EDGE`` of it)
+        that are beyond it a moment later, at ``t + dt`` on the state advanced by its rates (one more KKT
+        solve, only when such a device exists).
+
+        Why: the break-away function ``capacity - |load|`` of such a device starts the new segment at zero and
+        falls, and neither IDA's root finding (a function zero at the start is inactive until it leaves zero)
+        nor the ODE-form scan (a downward crossing) reports it: the device then holds any load. Fuzz seed 40004:
+        a gearbox's unselected gear (a lossy gear, its loss proportional to its load) stuck at rest with no
+        load when a DC motor's current started from zero; the ODE-form solvers kept it stuck, holding 0.24 N m
+        that nothing on its idler side could react, until the shift 0.29 s later (the whole drivetrain at
+        rest), while IDA broke it away on round-off. Moved by ``dt``, the load is beyond what the gear can hold,
+        so it breaks away now: the crossing lies within ``dt`` of the event."""
+        c = self.c
+        lam_f = lam[self.offset:]
+        q = self.q_from(t, x, v, z)
+        edge = []
+        for j, dev in enumerate(self.devices):
+            if modes[j] != STUCK:
+                continue
+            if dev.coupled:
+                hi, lo = dev.limits(lam_f[j], lam[self.coupled[j]])
+                size = max(abs(hi), abs(lo), abs(lam_f[j]), abs(lam[self.coupled[j]]), 1e-300)
+                if min(hi - lam_f[j], lam_f[j] - lo) <= PROBE_EDGE * size:
+                    edge.append(j)
+            else:
+                tau0_max = self._call(dev, "capacities", None if q is None else q[j], t, left)[1]
+                if tau0_max - abs(lam_f[j]) <= PROBE_EDGE * max(tau0_max, 1e-300):
+                    edge.append(j)
+        if not edge:
+            return []
+        dt = PROBE_DT * max(1.0, abs(t))
+        t2, x2, v2, z2 = t + dt, x + v * dt, v + a * dt, z + dz * dt
+        try:
+            _, lam2, _ = c.accelerations(t2, x2, v2, z2, modes)
+        except StructureError:
+            return []
+        lam2_f = lam2[self.offset:]
+        q2 = self.q_from(t2, x2, v2, z2)
+        out = []
+        for j in edge:
+            dev = self.devices[j]
+            if dev.coupled:
+                d = dev.breakaway(lam2_f[j], lam2[self.coupled[j]])
+            else:
+                qj = None if q2 is None else q2[j]
+                tau0_max = self._call(dev, "capacities", qj, t2, left)[1]
+                d = 0
+                if lam2_f[j] > tau0_max * (1 + 1e-12):
+                    d = FORWARD if (not dev.one_way or self._call(dev, "normal_force", qj, t2, left) > 0) else FREE
+                elif lam2_f[j] < -tau0_max * (1 + 1e-12) and not dev.one_way:
+                    d = BACKWARD
+            if d:
+                out.append((j, d))
+        return out
 
     def _capacity_rate(self, dev, qj, t, left, tau0_max):
         """d tau0_max / dt of a device at t [N m/s], by a forward difference in time at the same state (the
