@@ -342,3 +342,36 @@ def test_perturb_masses_scales_every_body_and_keeps_the_rest():
     m = fuzz.perturb_masses(_damped_model(), 1e-3)
     assert m["J"].J == pytest.approx(0.5 * (1 + 1e-3), rel=1e-12)
     assert m["spring"].c == 40.0
+
+
+def test_energy_checks_count_flange_torques_of_controllers_and_gears_in_the_absolute_floor():
+    """Fuzz seed 40201: a PI's 0.05 N m held at rest by stuck lossy gears. The force scale of the checks' absolute
+    floor read ``<device>.tau`` / ``.f`` only, which a controller's actuator (``pi1.flange.tau``) and a lossy gear
+    do not have, so the gear's round-off power (-2e-19 W) was judged against a power scale of round-off alone
+    and reported as a loss element supplying power. Flange torques count now; a real negative loss (a
+    nanowatt, twice the floor) is still found."""
+    from regmech.bench.fuzz import claimed_error
+    from regmech.components import Brake, Inertia, LossyGear
+    from regmech.components.control import PI
+    from regmech.signals import Step
+    m = rm.Model("fuzz_40201")
+    J1 = m.add(Inertia('J1', J=0.7785))
+    J2 = m.add(Inertia('J2', J=18.9))
+    lgear1 = m.add(LossyGear('lgear1', ratio=-0.1961, loss_table=[[0.0, 0.5168, 0.5813, 0.8926, 0.1572], [1.537, 0.6501, 0.5894, 0.0, 0.0], [87.52, 0.6852, 0.7569, 5.458, 5.123]]))
+    brake1 = m.add(Brake('brake1', mu_table=[(0.0, 0.5015), (1.861, 0.2066), (7.946, 0.1164), (25.89, 0.5167)], peak=1.194, cgeo=0.4021, fn_max=71.09, f_normalized=0.0))
+    J3 = m.add(Inertia('J3', J=0.03124))
+    lgear2 = m.add(LossyGear('lgear2', ratio=2.135, loss_table=[[0.0, 0.7697, 0.6441, 0.03318, 1.055]]))
+    pi1 = m.add(PI('pi1', w_ref=Step(height=-0.07968, start_time=0.4197, offset=-0.05335), k=0.1291, T_i=0.1769, u_max=24.18, u_min=-24.18))
+    m.connect(lgear1.flange_a, J2.flange_b)
+    m.connect(lgear1.flange_b, J1.flange_b)
+    m.connect(brake1.flange, J2.flange_b)
+    m.connect(lgear2.flange_a, J1.flange_a)
+    m.connect(lgear2.flange_b, J3.flange_a)
+    m.connect(pi1.sensor, J3.flange_a)
+    m.connect(pi1.flange, J1.flange_b)
+    res = m.simulate(0.609, dt_out=0.0015225, solver="scipy:DOP853", rtol=1e-8)
+    rel, ab = claimed_error("dop853", "scipy:DOP853", {"rtol": 1e-8}, res)
+    assert energy_checks(res, m, "dop853", rel=rel, abs_speed=ab) == []
+    bad = _Tampered(res, **{"lgear1.power": res["lgear1.power"] - 1e-9})
+    found = energy_checks(bad, m, "dop853", rel=rel, abs_speed=ab)
+    assert "loss-supplies-power" in {f.kind for f in found} and any("lgear1" in f.detail for f in found)
