@@ -73,10 +73,11 @@ its class and message) or ``finding`` (a list of ``Finding(kind, detail)``):
     the model's own sensitivity explains (``conditioning``): the tight
     reference, re-run with every mass perturbed by a relative amount equal to
     the larger rtol of the pair, moves by at least ``EXPLAINED_SHARE`` of the
-    pair's difference or by ``GROSS`` times the pair's claims. Perturbations of the size of the tolerance grow to the
-    size of the difference, so no solver at that rtol can do better (seed
-    20152, a rattle of ~100 contacts: a 1e-8 perturbation of the masses moves
-    the wheel speed by 3 % of its range). Such a model's global error is what
+    pair's difference or by ``GROSS`` times the pair's claims. Perturbations
+    of the size of the tolerance grow to the size of the difference, so no
+    solver at that rtol can do better (seed 20152, a rattle of ~100 contacts:
+    a 1e-8 perturbation of the masses moves the wheel speed by 5 % of its
+    range). Such a model's global error is what
     the accuracy contract measures: the default call must meet its accuracy
     or refuse (``default-accuracy``);
 ``default-accuracy``
@@ -1355,8 +1356,8 @@ def conditioning(findings, outcomes, results, model, spec, runs=RUNS, time_limit
     to a perturbation of the size of the tolerance alone breaks the claims grossly, so they cannot hold on
     this model (a chaotic rattle saturates: seed 20152's DOP853 at rtol 1e-8 is 0.69 of the range off the
     references, and a 1e-8 perturbation moves them by 0.05, 500 times the claims). Either way the model is
-    ill-conditioned at that tolerance, and the pair's difference is no evidence of a wrong answer. The global claim on such a model is the accuracy contract's (the default
-    call, held to it by ``default_accuracy``). ``probe(delta) -> (gap, signal) or None`` replaces the
+    ill-conditioned at that tolerance, and the pair's difference is no evidence of a wrong answer. The global
+    claim on such a model is the accuracy contract's (the default call, held to it by ``default_accuracy``). ``probe(delta) -> (gap, signal) or None`` replaces the
     re-run (tests)."""
     ok = {o.label: o for o in outcomes if o.status == "ok"}
     refs = [r for r in REFERENCE_RUNS if r in ok]

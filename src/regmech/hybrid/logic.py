@@ -203,8 +203,7 @@ class ModeLogic:
                 at_tie = abs(abs(lam_f[j]) - tau0_max) <= tie
                 cap_rate = self._capacity_rate(dev, qj, t, left, tau0_max) if at_tie else 0.0
                 if lam_f[j] > tau0_max * (1 + 1e-12) or (lam_f[j] > tau0_max - tie and lam_rate[j] > cap_rate):
-                    new[j] = FORWARD if (not dev.one_way or self._call(dev, "normal_force", qj, t, left) > 0) \
-                        else FREE
+                    new[j] = self._slide_direction(dev, qj, t, left, 1)
                     changed = True
                 elif (lam_f[j] < -tau0_max * (1 + 1e-12) or (lam_f[j] < -tau0_max + tie and lam_rate[j] < -cap_rate)) \
                         and not dev.one_way:
@@ -319,19 +318,24 @@ class ModeLogic:
             else:
                 qj = None if q2 is None else q2[j]
                 tau0_max = self._call(dev, "capacities", qj, t2, left)[1]
-                d = 0
-                if lam2_f[j] > tau0_max * (1 + 1e-12):
-                    d = FORWARD if (not dev.one_way or self._call(dev, "normal_force", qj, t2, left) > 0) else FREE
-                elif lam2_f[j] < -tau0_max * (1 + 1e-12) and not dev.one_way:
-                    d = BACKWARD
+                beyond = abs(lam2_f[j]) > tau0_max * (1 + 1e-12)
+                d = self._slide_direction(dev, qj, t2, left, np.sign(lam2_f[j])) if beyond else 0
             if d:
                 out.append((j, d))
         return out
 
+    def _slide_direction(self, dev, qj, t, left, sign):
+        """The mode of a stuck device whose load passes its capacity in direction ``sign`` (+1 / -1): FORWARD
+        (FREE for a one-way device without normal force) or BACKWARD (0, no change, for a one-way device,
+        which never slides backward)."""
+        if sign > 0:
+            return FORWARD if (not dev.one_way or self._call(dev, "normal_force", qj, t, left) > 0) else FREE
+        return 0 if dev.one_way else BACKWARD
+
     def _capacity_rate(self, dev, qj, t, left, tau0_max):
         """d tau0_max / dt of a device at t [N m/s], by a forward difference in time at the same state (the
         capacity moves with its normal-force signal; a command read from the state keeps its value)."""
-        dt = 1e-7 * max(1.0, abs(t))
+        dt = PROBE_DT * max(1.0, abs(t))
         return (self._call(dev, "capacities", qj, t + dt, left)[1] - tau0_max) / dt
 
     def _held_sliding(self, y, yp, modes, scale):

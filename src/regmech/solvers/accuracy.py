@@ -273,8 +273,8 @@ def net_changes(events) -> list[tuple[float, str, int, int, list[int]]]:
     last: dict = {}
     for i, ev in enumerate(events):
         if ev.kind in ("contact", "limit"):
-            # contacts of piecewise laws (and controllers' limits) are compared through the signals they shape: a grazing touch
-            # seen by one run and not the other changes the motion by less than the tolerances
+            # contacts of piecewise laws (and controllers' limits) are compared through the signals they shape: a
+            # grazing touch seen by one run and not the other changes the motion by less than the tolerances
             continue
         j = last.get(ev.component)
         if j is not None and out[j] is not None:

@@ -754,8 +754,8 @@ def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, s
     alike (the ODE-form solvers have ``ode_driver._relocate`` for the same class). Detected by
     ``_law_mismatch`` at the root; then the segment is integrated again from the last output row at or before
     the crossing step's start that follows the law itself (the same test: rows interpolated on a step that
-    straddled a knee do not; at most ``RELOCATE_BACK_ROWS`` of them, else the segment start), with steps bounded by ``1 / RELOCATE_SHRINK`` of that
-    step, up to that step's end, and the root is located on those steps (at most ``RELOCATE_ROUNDS`` times,
+    straddled a knee do not; at most ``RELOCATE_BACK_ROWS`` of them, else the segment start), with steps
+    bounded by ``1 / RELOCATE_SHRINK`` of that step, up to that step's end, and the root is located on those steps (at most ``RELOCATE_ROUNDS`` times,
     until the law is followed). The re-integration's rows replace the original ones after its start. A
     re-integration that finds no root keeps the original (the root stands as found).
 
