@@ -68,7 +68,8 @@ def test_dc_motor_energy_book_electrical_and_mechanical():
     assert np.max(np.abs(book_el)) < 1e-6 * e_in[-1]
     assert np.max(np.abs(book_mech)) < 1e-6 * e_in[-1]
     assert np.allclose(res["motor.p_mech"], -res["motor.power"], atol=1e-9 * np.abs(res["motor.p_mech"]).max())
-    assert np.allclose(res["motor.heat"], integral(res["motor.p_loss"]))         # the copper losses as heat
+    # the copper losses as heat (integrated from the laws between the rows; the trapezoid agrees on this grid)
+    assert np.max(np.abs(res["motor.heat"] - integral(res["motor.p_loss"]))) < 1e-6 * e_in[-1]
     # generator quadrant: a spinning rotor on a short-circuited armature (u = 0) is braked by its current;
     # its kinetic energy ends in the resistance (and the inductance)
     gen = dc_model(u=0.0, tau_load=0.0, w0=100.0).simulate(t_end=0.5, dt_out=1e-4, solver="ida", rtol=1e-9,

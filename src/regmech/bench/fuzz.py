@@ -1130,22 +1130,25 @@ def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> 
                                 f"({metrics['power']:.2g} of the power scale {p_scale:.3g} W; tolerance "
                                 f"{POWER_FACTOR * rel:.1g})", run))
     # energy books
-    src = np.zeros_like(t)
-    other = np.zeros_like(t)
+    # the integrals of the powers from the model's laws between the rows (``Result.integrals``): the trapezoid
+    # over the rows misses a brake stopping inside one output interval (the heat-quadrature class of seeds
+    # 10288, 40477, 50103: 0.151 J booked for 0.091 J); the trapezoid with its Richardson estimate stays the
+    # fallback for a result without them
+    ints = _power_integrals(res, t, powers)
     stored = np.zeros_like(t)
     per_dev = {}
+    work, qe_w = np.zeros_like(t), 0.0
+    absorbed, qe_o = np.zeros_like(t), 0.0
     for name, (dev, p) in powers.items():
+        cum, qe = ints[name]
         if dev.is_source:
-            src = src + p
+            work, qe_w = work - cum, qe_w + qe
             continue
-        other = other + p
+        absorbed, qe_o = absorbed + cum, qe_o + qe
         pot = res[f"{name}.potential"] if f"{name}.potential" in res else None
         if pot is not None:
             stored = stored + pot
-        cum, qe = integrate(t, p)
         per_dev[name] = (dev, cum - (0.0 if pot is None else pot - pot[0]), qe, p)
-    work, qe_w = integrate(t, -src)
-    absorbed, qe_o = integrate(t, other)
     dissipated = absorbed - (stored - stored[0])
     books = (kin - kin[0]) + (stored - stored[0]) + dissipated - work
     e_scale = max(float(integrate(t, p_abs)[0][-1]), float(kin.max()), float(np.abs(stored).max(initial=0.0)))
@@ -1186,6 +1189,22 @@ def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> 
                                         f"its stored energy at t={t[j]:.6g} (tolerance {tol_d:.3g} J)", run, where))
     metrics["loss"] = worst_loss
     return findings
+
+
+def _power_integrals(res, t, powers):
+    """``{device: (int P dt at the rows, its error estimate)}``: ``Result.integrals`` where the result has it and
+    it answers, else the trapezoid with its own estimate (``integrate``)."""
+    names = [f"{name}.power" for name in powers]
+    got = None
+    if names and callable(getattr(res, "integrals", None)):
+        from regmech.errors import AccuracyError
+        try:
+            got = res.integrals(names)
+        except AccuracyError:
+            got = None
+    if got is None:
+        return {name: integrate(t, p) for name, (_, p) in powers.items()}
+    return {name: got[f"{name}.power"] for name in powers}
 
 
 def _loss_kind(dev):

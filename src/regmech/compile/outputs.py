@@ -309,6 +309,17 @@ class Trajectory:
             self._names = sorted(set(out))
         return list(self._names)
 
+    def integral_rate(self, name: str) -> str | None:
+        """The signal whose time integral ``name`` is, or None: a device's ``heat`` [J] is the integral of its
+        ``heat_flow`` [W] (``components.heat``), which ``Result`` computes from the model's laws between the
+        rows (``solvers.quadrature``) rather than by the trapezoid of ``Device.derived``."""
+        owner, _, key = name.rpartition(".") if isinstance(name, str) else ("", "", "")
+        comp = self.c.model.components.get(owner)
+        units = getattr(comp, "derived_units", None) or {}
+        if key == "heat" and "heat" in units and "heat_flow" in units:
+            return f"{owner}.heat_flow"
+        return None
+
     def get(self, name: str) -> np.ndarray | None:
         recipe = self._recipe(name)
         if recipe is None:

@@ -12,10 +12,13 @@ they absorb, ``heat_flow = sum_r tau_r de_r``; a ``SpringDamper`` or an
 elastic ``Shaft`` dissipates ``d w_rel^2`` (the rest of its power is stored
 in the spring); electric machines their ``p_loss``.
 
-``heat`` is integrated over the output instants by the trapezoidal rule (an
-event instant appears twice, as left and right limits, so a jump of the heat
-flow at an event is integrated exactly); its error falls with ``dt_out^2``,
-so a fine output grid gives an accurate heat (halve ``dt_out`` to check).
+A result of ``simulate`` integrates ``heat`` from the model's laws between
+the output rows (``Result.integral``, ``regmech.solvers.quadrature``): an
+output interval that the rows do not resolve (a brake stopping inside it)
+is integrated again from its first row, so the heat is right whatever
+``dt_out``. ``derived`` below gives the trapezoid over the rows (an event
+instant appears twice, so a jump of the heat flow there is exact): what a
+result made otherwise (not by ``simulate``) shows.
 
 A lumped thermal mass of an element (heat capacity ``C`` [J/K], conductance
 to ambient ``G`` [W/K])::

@@ -90,7 +90,11 @@ def simulate(model, t_end, dt_out=None, solver="auto", *, accuracy=None, t_start
     _load()
     # one wall-clock limit over everything the call runs (auto's choice, the contract's companion runs)
     with time_limit(options.pop("timeout_s", None)):
-        return _simulate(model, t_end, dt_out, solver, accuracy, t_start, options)
+        res = _simulate(model, t_end, dt_out, solver, accuracy, t_start, options)
+    if hasattr(res, "integrator"):
+        from .quadrature import cumulative
+        res.integrator = cumulative        # heat and res.integral follow the model's laws between the rows
+    return res
 
 
 def _simulate(model, t_end, dt_out, solver, accuracy, t_start, options):
@@ -108,7 +112,11 @@ def _simulate(model, t_end, dt_out, solver, accuracy, t_start, options):
         return simulate_auto(model, t_start, t_end, dt_out, accuracy, options)
     fn = _solver(solver)
     if accuracy is None:
-        return fn(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **options)
+        res = fn(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **options)
+        rtol = options.get("rtol", options.get("tol"))
+        if rtol is not None and hasattr(res, "stats"):
+            res.stats.extra.setdefault("rtol", rtol)     # the tolerance Result.integral aims at
+        return res
     return simulate_with_accuracy(model, solver, fn, t_start, t_end, dt_out, accuracy, options)
 
 
