@@ -604,6 +604,52 @@ def test_ida_relocates_a_root_from_a_row_that_follows_the_law():
     assert len(t_fine) == len(t_ref) and np.abs(np.subtract(t_fine, t_ref)).max() < 1e-8, (t_fine, t_ref)
 
 
+def _model_10288():
+    """Fuzz seed 10288's model, written out: one inertia braked to a stop at t = 6.1e-4 s, then held by the brake
+    (capacity about 170 N m) against a sine torque of at most 13 N m for the rest of the 0.25 s."""
+    from regmech.components import BearingFriction, Brake
+    m = rm.Model('fuzz_10288')
+    J1 = m.add(Inertia('J1', J=0.01342, w0=3.73, phi0=-0.4642))
+    brake1 = m.add(Brake('brake1', mu_table=[(0.0, 0.1148), (2.26, 0.7008)], peak=1.321, cgeo=0.05496,
+                         fn_max=3424.0, f_normalized=1.0))
+    bearing1 = m.add(BearingFriction('bearing1', tau_table=[(0.0, 0.4096)], peak=1.085))
+    drive1 = m.add(Torque('drive1', tau=Sine(amplitude=10.06, freq_hz=11.62, phase=6.271, offset=-2.906,
+                                             start_time=0.0)))
+    m.connect(brake1.flange, J1.flange_a)
+    m.connect(bearing1.flange, J1.flange_a)
+    m.connect(drive1.flange, J1.flange_b)
+    return m
+
+
+def test_ida_relocation_bounds_only_the_steps_near_the_crossing():
+    """Seed 10288: the default call (auto: ida under the accuracy contract, rtol 3e-6, atol 2.46e-11) took
+    85,461 IDA step attempts (6 s) for 0.25 s of a single inertia that is stuck after 6.1e-4 s. The stick's root
+    was located again (``ida._relocate_root``: at w = 0 the speed's tolerance is atol alone, and the
+    interpolant's acceleration was 0.04 of 1832 rad/s^2 off the law's), and the re-integration restarted from
+    the segment start (no output row lies before the stick at dt_out = 6.22e-4 s) with every step bounded to
+    1/8 of the 5.8e-8 s crossing step: 85,000 steps of 7.2e-9 s. The bounded steps now begin a few crossing
+    steps before it: 415 attempts in all (90 slipping, 108 relocating, 217 holding the sine's torque), the
+    companion run at rtol 3e-5 497 (was 33,979). The bound below is about 5 times that; the answer is checked
+    against Radau at rtol 1e-10."""
+    m = _model_10288()
+    t_end, dt = 0.2488, 0.000622
+    ref = m.simulate(t_end, dt_out=dt, solver="scipy:Radau", rtol=1e-10)
+    res = m.simulate(t_end, dt_out=dt)
+    assert res.stats.solver == "ida"
+    assert res.stats.steps < 2000, res.stats
+    assert res.stats.error_estimate <= 1e-3
+    for sig in ("J1.w", "J1.phi", "brake1.tau"):
+        a, b = np.asarray(res[sig]), np.asarray(ref[sig])
+        assert a.shape == b.shape
+        assert np.abs(a - b).max() <= 1e-4 * np.ptp(b), sig        # measured 3.8e-6 of the range at most (J1.phi)
+    assert abs(res.events[0].t - ref.events[0].t) < 1e-8
+    # plain IDA at the contract's settings and at its companion's: the same relocation, the same bound
+    for rtol, atol in ((3e-6, 2.46e-11), (3e-5, 2.46e-10)):
+        plain = m.simulate(t_end, dt_out=dt, solver="ida", rtol=rtol, atol=atol)
+        assert plain.stats.steps < 2000, (rtol, plain.stats)
+        assert plain["J1.w"][-1] == 0.0 and plain["brake1.mode"][-1] == 0
+
+
 def _model_30252():
     """Fuzz seed 30252's model, written out: a brake with a sine normal force on J1 and, through a limited-slip
     differential whose lock is stuck, a bearing holding the same motion (holding in turn)."""

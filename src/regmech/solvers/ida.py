@@ -266,6 +266,9 @@ RELOCATE_ROUNDS = 3
 #: output rows a relocation's restart may step back past because they depart from the law; beyond, it restarts
 #: from the segment start
 RELOCATE_BACK_ROWS = 400
+#: how far before the crossing step, in lengths of that step, the re-integration's bounded steps begin when the
+#: restart row follows the law and no row lies between it and the crossing step (``_relocate_root``)
+RELOCATE_REACH = 3.0
 
 
 #: signal classes whose value is a function of time and of their (scalar) attributes alone
@@ -755,9 +758,17 @@ def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, s
     ``_law_mismatch`` at the root; then the segment is integrated again from the last output row at or before
     the crossing step's start that follows the law itself (the same test: rows interpolated on a step that
     straddled a knee do not; at most ``RELOCATE_BACK_ROWS`` of them, else the segment start), with steps
-    bounded by ``1 / RELOCATE_SHRINK`` of that step, up to that step's end, and the root is located on those steps (at most ``RELOCATE_ROUNDS`` times,
-    until the law is followed). The re-integration's rows replace the original ones after its start. A
-    re-integration that finds no root keeps the original (the root stands as found).
+    bounded by ``1 / RELOCATE_SHRINK`` of that step, up to that step's end, and the root is located on those steps
+    (at most ``RELOCATE_ROUNDS`` times, until the law is followed). The re-integration's rows replace the original
+    ones after its start. A re-integration that finds no root keeps the original (the root stands as found).
+
+    The bounded steps begin at the restart row only when the restart stepped back over rows that depart from
+    the law (the steps under them did too). When the restart row is the last one before the crossing step and
+    follows the law, the steps from it up to ``RELOCATE_REACH`` crossing steps before that step run with the
+    run's own step limit, as they did in the run, and only the rest is bounded: a row can lie far before a
+    short crossing step (a sparse output grid, or none before the root), and bounding all of that stretch
+    cost steps in proportion to its length over the crossing step's (fuzz seed 10288: 85,000 steps of
+    7.2e-9 s from the segment start to a stick at 6.1e-4 s, where the run took 90 steps; now 108).
 
     ``recent``: the last distinct times of the residual calls (``_make_solver``); returns ``(sol, record)``.
     """
@@ -801,24 +812,40 @@ def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, s
         else:
             i_r, t_r, y_r, yp_r = 0, t, y, yp
         bound = h / RELOCATE_SHRINK if not max_step else min(max_step, h / RELOCATE_SHRINK)
+        # the bounded steps begin near the crossing step: from the restart row only when rows were stepped back
+        # over (they lie on steps that departed from the law); else the restart row follows the law and the
+        # steps up to RELOCATE_REACH crossing steps before the crossing run unbounded, as they did in the run
+        # itself (fuzz seed 10288: no output row before a stick at 6.1e-4 s, h = 5.8e-8 s; bounded from the
+        # segment start, the re-integration took 85,000 steps of 7.2e-9 s where the run took 90)
+        t_s = t_r if back else max(t_r, t_a - RELOCATE_REACH * h)
         tol = 1e-12 * max(1.0, abs(t_b))
-        inner = grid[np.searchsorted(grid, t_r + tol, side="right"):np.searchsorted(grid, t_b - tol, side="left")]
-        tspan = np.concatenate([[t_r], inner, [t_b]])
-        rec2 = np.concatenate([[True], np.ones(len(inner), bool), [t_b >= t_stop]])
-        if len(tspan) == 2:
-            tspan, rec2 = np.array([t_r, 0.5 * (t_r + t_b), t_b]), np.array([True, False, t_b >= t_stop])
-        again = _make_solver(c, modes, rtol, atol_vec, linsolver, bound, max_order, True, order, max_steps,
-                             deadline)
-        with sundials_log.kept():
-            try:
-                sol2 = again.solve(tspan, order.to_solver(y_r), order.to_solver(yp_r))
-                if order.perm is not None:
-                    _unpermute(sol2, order)
-            except (RuntimeError, ValueError, KeyError):
-                break                               # the original root stands
-        stats.rhs_calls += int(getattr(sol2, "nfev", 0) or 0)
-        stats.jac_calls += int(getattr(sol2, "njev", 0) or 0)
-        stats.steps += again.regmech_attempts[1]
+        on_grid = grid[np.abs(grid - t_s) <= tol]
+        if len(on_grid):
+            t_s = float(on_grid[0])         # a grid point at the seam is that point, recorded once
+        approach = None
+        if t_s > t_r + tol:
+            approach = _reintegrate(c, modes, opts, atol_vec, t_r, y_r, yp_r, t_s, grid, max_step,
+                                    bool(len(on_grid)), stats, deadline)
+            if approach is None:
+                break                                   # the original root stands
+            solA, recA, solverA = approach
+        if approach is not None and solA.status == 2:
+            # a root before the bounded stretch: it stands for the crossing step's (checked again next round)
+            sol2, rec2, again = solA, recA, solverA
+        else:
+            if approach is not None:
+                xs, vs, _, _, zs = c.unpack(np.asarray(solA.y[-1]), np.asarray(solA.yp[-1]))
+                y_s, yp_s = c.assemble_y(t_s, xs, vs, zs, modes)
+            else:
+                t_s, y_s, yp_s = t_r, y_r, yp_r
+            bounded = _reintegrate(c, modes, opts, atol_vec, t_s, y_s, yp_s, t_b, grid, bound, t_b >= t_stop,
+                                   stats, deadline)
+            if bounded is None:
+                break                                   # the original root stands
+            sol2, rec2, again = bounded
+            if approach is not None:
+                sol2 = _Merged(solA, len(solA.t) - 1, sol2)
+                rec2 = np.concatenate([recA, rec2[1:]])
         stats.extra["relocated_roots"] = stats.extra.get("relocated_roots", 0) + 1
         if sol2.status != 2:
             break                                   # no root up to the step's end: the original stands
@@ -828,6 +855,32 @@ def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, s
         best, best_record = sol, record
         recent, t = list(again.regmech_attempts[2]), t_r
     return best, best_record
+
+
+def _reintegrate(c, modes, opts, atol_vec, t0, y0, yp0, t1, grid, bound, record_end, stats, deadline):
+    """IDA from (t0, y0, yp0) to t1 with events and steps of at most ``bound`` (None: no limit) for
+    ``_relocate_root``; returns ``(sol, record, solver)``, None when IDA fails (the original root then stands)."""
+    rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
+    tol = 1e-12 * max(1.0, abs(t1))
+    inner = grid[np.searchsorted(grid, t0 + tol, side="right"):np.searchsorted(grid, t1 - tol, side="left")]
+    tspan = np.concatenate([[t0], inner, [t1]])
+    rec = np.concatenate([[True], np.ones(len(inner), bool), [record_end]])
+    if len(tspan) == 2:
+        tspan, rec = np.array([t0, 0.5 * (t0 + t1), t1]), np.array([True, False, record_end])
+    solver = _make_solver(c, modes, rtol, atol_vec, linsolver, bound, max_order, True, order, max_steps, deadline)
+    with sundials_log.kept():
+        try:
+            sol = solver.solve(tspan, order.to_solver(y0), order.to_solver(yp0))
+            if order.perm is not None:
+                _unpermute(sol, order)
+        except (RuntimeError, ValueError, KeyError):
+            return None
+    stats.rhs_calls += int(getattr(sol, "nfev", 0) or 0)
+    stats.jac_calls += int(getattr(sol, "njev", 0) or 0)
+    stats.steps += solver.regmech_attempts[1]
+    if sol.status < 0:
+        return None
+    return sol, rec, solver
 
 
 class _Merged:
