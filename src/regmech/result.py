@@ -150,8 +150,9 @@ class Result:
                 f"listed by res.names")
         if name in self._cache:
             return self._cache[name]
-        rate = self._traj.integral_rate(name)
-        if rate is not None and getattr(self, "integrator", None) is not None:
+        # a stored result (``io``) keeps its heat as it was computed; a run's is integrated between the rows
+        rate = self._traj.integral_rate(name) if getattr(self, "integrator", None) is not None else None
+        if rate is not None:
             val = self.integral(rate)
             self._cache[name] = val
             return val
