@@ -56,12 +56,19 @@ class Event:
     #: estimated error of ``t`` [s] (runs made with ``accuracy=``: the difference of the switch times of the
     #: companion runs, ``regmech.solvers.accuracy``); None: not estimated
     t_error: float | None = None
+    #: ``kind`` "impact" (a ``HardStop`` reaching a limit, ``new_mode`` +1 upper / -1 lower): the kinetic energy
+    #: the impact dissipated [J], booked in the stop's ``heat``; None otherwise
+    value: float | None = None
 
     def __str__(self):
         err = "" if self.t_error is None else f" (+-{self.t_error:.2g} s)"
         if self.kind == "contact":
             return (f"t={self.t:.6g}{err}: {self.component} contact: {CONTACT_NAMES.get(self.old_mode, self.old_mode)} "
                     f"-> {CONTACT_NAMES.get(self.new_mode, self.new_mode)}")
+        if self.kind == "impact":
+            where = "upper" if self.new_mode > 0 else "lower"
+            lost = "" if self.value is None else f", {self.value:.6g} J dissipated"
+            return f"t={self.t:.6g}{err}: {self.component} impact at the {where} limit{lost}"
         if self.kind == "limit":
             return (f"t={self.t:.6g}{err}: {self.component} output: {LIMIT_NAMES.get(self.old_mode, self.old_mode)} "
                     f"-> {LIMIT_NAMES.get(self.new_mode, self.new_mode)}")
@@ -153,14 +160,38 @@ class Result:
         # a stored result (``io``) keeps its heat as it was computed; a run's is integrated between the rows
         rate = self._traj.integral_rate(name) if getattr(self, "integrator", None) is not None else None
         if rate is not None:
-            val = self.integral(rate)
+            val = self._with_impacts(name, self.integral(rate))
             self._cache[name] = val
             return val
         val = self._traj.get(name)
         if val is None:
             raise UnknownSignalError(self._unknown(name))
+        val = self._with_impacts(name, val)
         self._cache[name] = val
         return val
+
+    def impact_losses(self, device: str):
+        """The energy [J] the impacts of ``device`` (a ``HardStop``) have dissipated up to each output row, or None
+        when it had none: the sum of ``Event.value`` of its "impact" events, each from the row after the impact
+        on (the last row at the event's instant). Part of the device's ``heat``."""
+        hits = [(ev.t, ev.value) for ev in self.events if ev.kind == "impact" and ev.component == device
+                and ev.value is not None]
+        if not hits:
+            return None
+        out = np.zeros(len(self.t))
+        for t_ev, loss in hits:
+            k = int(np.searchsorted(self.t, t_ev, side="right")) - 1
+            if k >= 0 and self.t[k] < t_ev:
+                k += 1          # no row at the event (a result thinned after the run): from the next row on
+            out[max(k, 0):] += loss
+        return out
+
+    def _with_impacts(self, name: str, val):
+        """A hard stop's ``heat``: its friction heat (none) plus what its impacts dissipated (``impact_losses``)."""
+        if not name.endswith(".heat"):
+            return val
+        jumps = self.impact_losses(name[:-len(".heat")])
+        return val if jumps is None else np.asarray(val, dtype=float) + jumps
 
     def integral(self, name: str, error: bool = False):
         """``int_{t_0}^{t} p dt`` of signal ``name`` (a power [W] gives an energy [J]) at every output instant,

@@ -1141,6 +1141,9 @@ def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> 
     absorbed, qe_o = np.zeros_like(t), 0.0
     for name, (dev, p) in powers.items():
         cum, qe = ints[name]
+        jumps = res.impact_losses(name) if callable(getattr(res, "impact_losses", None)) else None
+        if jumps is not None:
+            cum = cum + jumps       # a hard stop's impacts: energy taken at an instant, not by a power
         if dev.is_source:
             work, qe_w = work - cum, qe_w + qe
             continue

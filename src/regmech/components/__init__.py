@@ -13,7 +13,7 @@ from .wheel import MagicFormulaTyre, MagicFormulaWheel, Rolling, Wheel
 from .sources import Force, LinearPosition, LinearSpeed, Position, Speed, Torque
 from .gearbox import DualClutchTransmission, Gearbox
 from .converter import ConverterFluid, TorqueConverter
-from .stops import ElastoGap, EndStop, MassWithStopAndFriction
+from .stops import ElastoGap, EndStop, HardStop, LinearHardStop, MassWithStopAndFriction
 from .laws import Stribeck
 from .heat import ThermalMass  # noqa: F401  (a law object like Stribeck: importable here, not a component)
 from .accel import Accelerate, LinearAccelerate
@@ -32,7 +32,7 @@ __all__ = [
     "Torque", "Force", "Position", "Speed", "LinearPosition", "LinearSpeed",
     "DCMotor", "SeriesDCMotors", "ElectricMotor", "Controller", "PI", "PICommand", "Driver",
     "Gearbox", "DualClutchTransmission", "TorqueConverter", "ConverterFluid",
-    "EndStop", "ElastoGap", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad", "Accelerate", "LinearAccelerate",
+    "EndStop", "ElastoGap", "HardStop", "LinearHardStop", "MassWithStopAndFriction", "LinearBrake", "VehicleLoad", "Accelerate", "LinearAccelerate",
     "LinearSpeedDependentTorque", "QuadraticSpeedDependentTorque", "SignTorque", "InverseSpeedDependentTorque",
     "LinearSpeedDependentForce", "QuadraticSpeedDependentForce", "SignForce", "InverseSpeedDependentForce",
 ]

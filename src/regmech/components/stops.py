@@ -21,11 +21,12 @@ rest of the power the contact absorbs, ``clip(tau_d, ...) * w_rel``, has the sig
 Contacts are located as events (``switching_surfaces``: in touch *and* pushing, so a damped contact
 ends where its force returns to zero) and listed in ``Result.events`` with ``kind="contact"``.
 
-A rigid impact with a coefficient of restitution (speeds reset at the located contact) is not
-provided yet: a stiff contact (``c`` giving a contact frequency well above the model's) with the
-damping chosen for the wanted restitution is its compliant counterpart. For a linear
-spring-damper contact of mass ``m`` the restitution is about ``exp(-pi zeta / sqrt(1 - zeta^2))``
-with ``zeta = d / (2 sqrt(c m))`` (less when the damping limit is active at the end of contact).
+The rigid counterpart is ``HardStop`` (an impact with a coefficient of restitution ``e``, the
+speeds reset at the located contact, then a holding contact). A stiff ``EndStop`` (``c`` giving a
+contact frequency well above the model's) with the damping chosen for the wanted restitution is its
+compliant counterpart: for a linear spring-damper contact of mass ``m`` the restitution is about
+``exp(-pi zeta / sqrt(1 - zeta^2))`` with ``zeta = d / (2 sqrt(c m))`` (less when the damping limit
+is active at the end of contact).
 """
 
 from __future__ import annotations
@@ -34,8 +35,9 @@ import sympy
 
 from ..component import Device, Param, Subsystem
 from ..errors import ParameterError
+from ..modes import FREE, HELD
 from ..ports import TRANSLATIONAL
-from .friction import FrictionContact
+from .friction import FrictionContact, FrictionDevice
 from .inertial import Fixed, Mass
 
 
@@ -174,4 +176,101 @@ class MassWithStopAndFriction(Subsystem):
         self.link(fric.flange_b, ground.flange)
 
 
-__all__ = ["EndStop", "ElastoGap", "MassWithStopAndFriction"]
+class HardStop(FrictionDevice):
+    """Rigid travel limits ``lower <= phi_rel <= upper`` of ``flange`` against ``support`` (grounded when
+    free) with impacts (Simscape Hard Stop, impact variant; MSL ``MassWithStopAndFriction``), with
+    ``phi_rel = phi_flange - phi_support`` [rad] (``s_rel`` [m] with ``domain="translational"``, or
+    ``LinearHardStop``), ``w_rel`` its rate [rad/s or m/s].
+
+    * ``lower < phi_rel < upper``: it transmits nothing (``tau = 0``; mode Free, contact state 0).
+    * ``phi_rel`` reaches a limit moving into it (``s w_rel > 0``, ``s = +1`` at ``upper``, ``-1`` at
+      ``lower``): an event (``Event(kind="impact")``, ``old_mode`` 0, ``new_mode`` ``s``, ``value`` the
+      energy lost [J]) at which the relative speed jumps to ``w_rel+ = -e w_rel-`` by an impulse ``P``
+      [N m s or N s] on the row, the speeds ``v+ = v- + M^-1 (A^T y + G^T P)`` closest to ``v-`` in the
+      mass norm that keep every rigid link, gear and source (rows ``A``, their speeds unchanged) and
+      every stuck friction device at zero slip: a velocity-level KKT projection, so the momentum of the
+      rest of the system is respected. Energy lost ``-P (w_rel- + w_rel+) / 2 = (1 - e^2) m_eff
+      w_rel-^2 / 2`` (``m_eff`` the mass the row sees through the constraints) is booked in
+      ``<name>.heat`` [J] at the event (a jump), so the books close.
+    * Contact: with ``e = 0``, or when the rebound is Zeno (below), ``w_rel+ = 0`` and the limit becomes a
+      holding constraint ``a_rel = 0`` whose torque ``tau`` (``<name>.tau``, the torque the stop takes
+      from the flange, as a ``Brake``'s) can only push: ``s tau >= 0`` (mode Stuck, contact state ``s``,
+      ``Event(kind="contact")`` 0 -> s). When ``s tau`` would turn negative (the load pulls away) it
+      releases (an event, contact ``s`` -> 0, mode Free). A contact whose load pulls at once releases at
+      once.
+    * Restart: a rebound restarts ``delta = 1e-12 max(1, |upper|, |lower|)`` inside the limit (so that every
+      solver watches the limit again from the restart on), and the work of the load over ``delta`` is
+      taken from the rebound, ``w_rel+^2 = (e w_rel-)^2 - 2 a_in delta`` (``a_in`` the relative acceleration
+      into the limit): the offset feeds no energy into a bounce sequence.
+    * Zeno (a bouncing mass under a steady load has infinitely many impacts in finite time): an impact
+      goes to contact instead of rebounding when ``e |w_rel-| <= ZENO_SPEED * w_max`` (``w_max`` the
+      largest impact speed this stop has had in the run; ``ZENO_SPEED = 1e-6``), when the rebound cannot
+      rise above ``delta`` (``(e w_rel-)^2 <= 2 a_in delta``), or when it comes within ``ZENO_DT *
+      max(1, |t|)`` s of the stop's previous impact (``ZENO_DT = 1e-10``). Under a constant load ``a`` the
+      flights left out last ``2 w_r / (a (1 - e))`` in all, with the cancelled rebound ``w_r <=
+      max(1e-6 w_max, sqrt(2 a delta))``: the contact starts that much before the geometric series' limit
+      at most (4e-6 s for w_max = 1.4 rad/s, a = 2 rad/s^2, e = 0.5). Every loop is bounded
+      (``max_events``).
+
+    ``0 <= e <= 1`` [1] the coefficient of restitution. The start must be inside the limits (at a limit
+    only when not moving into it; there it holds, or releases at once when the load pulls away).
+    Regularity: the flange carries a mass. Solvers: IDA and the ODE-form solvers (scipy's, at every
+    located event); ``expm``, the explicit fixed-step methods and ``convolution`` refuse a model with a
+    hard stop (their steps and error estimates assume continuous speeds). The stop never supplies
+    energy: its torque does no work while it holds (``w_rel = 0``).
+
+    Decisions (as a Modelica/Simscape user would expect): the impact law is Newton's (a relative-speed
+    restitution), applied through the model's own mass matrix and constraints; a motion source on the
+    stop's path keeps its speed through the impulse (its impulsive work is not in the stop's heat, which
+    books only ``-P (w- + w+) / 2``); a hard stop is a friction row of the hybrid layer (Free / Stuck),
+    so a holding stop takes part in the holding-torque solve like a stuck brake.
+    """
+
+    impact = True
+    flanges = (("flange", None), ("support", None, True))
+    lower = Param(check="real", unit="rad", doc="lower travel limit of phi_rel")
+    upper = Param(check="real", unit="rad", doc="upper travel limit of phi_rel")
+    e = Param(check="real", unit="1", doc="coefficient of restitution, 0 <= e <= 1")
+    #: an impact whose rebound speed is at most this fraction of the stop's largest impact speed goes to contact
+    ZENO_SPEED = 1e-6
+    #: an impact this close (times max(1, |t|) [s]) after the stop's previous one goes to contact
+    ZENO_DT = 1e-10
+
+    def validate(self):
+        if not self.lower < self.upper:
+            raise ParameterError(f"{type(self).__name__} '{self.name}': needs lower < upper, got lower={self.lower}, "
+                                 f"upper={self.upper}")
+        if not 0.0 <= self.e <= 1.0:
+            raise ParameterError(f"{type(self).__name__} '{self.name}': the coefficient of restitution e must lie in "
+                                 f"[0, 1] (0: plastic, 1: elastic impact), got e={self.e}")
+
+    def rows(self):
+        return [{"support": -1.0, "flange": 1.0}]
+
+    # its row carries a force only while it holds (mode Stuck, a_rel = 0); otherwise none
+    def relation(self, mode, quadrant, w_abs, t, left=False, q=None):
+        return 1.0, 0.0, 0.0, 0.0
+
+    def kinetic(self, w_abs, t, left=False, q=None):
+        return 0.0, 0.0
+
+    def capacities(self, t, left=False, q=None):
+        return 0.0, 0.0
+
+    def capacity_function(self):
+        return lambda t, left=False: (1.0, 0.0, 0.0)
+
+    def contact_state(self, mode, side) -> int:
+        """The contact code of a mode: ``side`` (+1 upper, -1 lower) while holding, 0 when free."""
+        return 0 if mode in (FREE, HELD) else int(side)
+
+
+class LinearHardStop(HardStop):
+    """``HardStop`` of a translational flange: limits ``lower <= s_rel <= upper`` [m], force ``f`` [N]."""
+
+    default_domain = TRANSLATIONAL
+    lower = Param(check="real", unit="m", doc="lower travel limit of s_rel")
+    upper = Param(check="real", unit="m", doc="upper travel limit of s_rel")
+
+
+__all__ = ["EndStop", "ElastoGap", "HardStop", "LinearHardStop", "MassWithStopAndFriction"]

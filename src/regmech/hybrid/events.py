@@ -56,7 +56,7 @@ class EventFunctions:
         self._relief = []      # (row, holder's lam index, sign, tol): see Holding._relief_events
         self._small = None
         self._small_for, self._small_steps = None, None
-        if self.mf <= 8 and not self._coupled_rows and not self.has_inputs:
+        if self.mf <= 8 and not self._coupled_rows and not self.has_inputs and not self._stops:
             Gc = self.G.tocsr()
             c = self.c
             self._small = [([int(c.iv[k]) for k in Gc.indices[Gc.indptr[j]:Gc.indptr[j + 1]]],
@@ -205,4 +205,6 @@ class EventFunctions:
                 self.devices[j], int(modes[j]), int(self.quadrant[j]), w[j], lam[j], lam_all[self.coupled[j]])
         for j, il, sign, tol in self._relief:
             out[2 * j] = modes[j] * sign * y[il] + tol
+        if self._stops:
+            self.stop_event_values(out, y, lam, modes)      # hard stops: limits reached, contact released
         return out

@@ -7,10 +7,11 @@ from .chatter import ChatterGuard
 from .events import EventFunctions
 from .gears import GearSides
 from .holding import Holding
+from .impacts import Impacts
 from .logic import ModeLogic
 
 
-class FrictionSet(ModeLogic, EventFunctions, Holding, GearSides, FrictionRows):
+class FrictionSet(ModeLogic, EventFunctions, Holding, Impacts, GearSides, FrictionRows):
     """All friction rows of a compiled system with their event functions and mode logic.
 
     The rows' equations (residual, Jacobian weights, KKT relations) are ``FrictionRows``
@@ -23,6 +24,7 @@ class FrictionSet(ModeLogic, EventFunctions, Holding, GearSides, FrictionRows):
     def from_rows(cls, rows: FrictionRows) -> "FrictionSet":
         fs = cls.__new__(cls)
         fs.__dict__.update(rows.__dict__)
+        fs._setup_impacts()
         fs._setup_events()
         fs._flips = set()
         return fs

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import SimulationError, StructureError
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
 from .gears import gear_first_step
+from .impacts import RELEASE_TOL
 
 
 #: a stuck device within this fraction of its capacity is probed a moment later (``_probe_breakaways``)
@@ -47,6 +48,8 @@ class ModeLogic:
             state = c.initial_y(t, np.full(self.mf, FREE))
         old = np.array(modes, dtype=int)
         lam_rate = state[1][c.ilam[self.offset:]]        # d lam/dt at the event (IDA's interpolant)
+        side_old = self.stop_side.copy()
+        self._impact_log = []
         y, yp, new, scale = self._settle_once(t, state, old, crossed, initial, lam_rate)
         # The modes settled here must be what the logic finds again at this instant with nothing crossed: a device
         # left sliding at zero slip, held by others, is re-stuck at the next event whatever it is (fuzz seed 102's
@@ -68,9 +71,18 @@ class ModeLogic:
         q = self.q_all(t, y) if self.has_inputs else None
         self.engaged = np.array([self._call(d, "normal_force", None if q is None else q[j], t, False) > 0
                                  for j, d in enumerate(self.devices)])
-        changes = []
+        changes = list(self._impact_log)     # impacts of hard stops first (``impacts``), with their losses
+        self._impact_log = []
+        if self._stops:
+            lam_now = y[c.ilam]
+            self._stop_tol[:] = RELEASE_TOL * max(1.0, float(np.abs(lam_now).max(initial=0.0)))
         if not initial:
             for j, dev in enumerate(self.devices):
+                if j in self._stop_set:
+                    was, now = dev.contact_state(old[j], side_old[j]), dev.contact_state(new[j], self.stop_side[j])
+                    if was != now:
+                        changes.append((dev.name, was, now, "contact"))
+                    continue
                 if old[j] != new[j]:
                     changes.append((dev.name, int(old[j]), int(new[j]), "mode"))
                 if dev.coupled and old[j] in (FORWARD, BACKWARD) and new[j] in (FORWARD, BACKWARD):
@@ -100,8 +112,14 @@ class ModeLogic:
             w[j] = 0.0
         # round-off of the relative accelerations (a device at rest, held by others, has |a_rel| below it)
         a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
+        self._modes_now = old
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
+            if j in self._stop_set:
+                # a hard stop: a limit reached is an impact (the speeds jump, ``impacts``), a holding contact whose
+                # release function crossed lets go
+                new[j], v = self._stop_step(j, dev, int(old[j]), x, v, z, crossed, initial, t, scale)
+                continue
             engaged = self._call(dev, "normal_force", None if q is None else q[j], t, left) > 0
             if dev.coupled:
                 new[j] = gear_first_step(dev, int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
@@ -190,6 +208,11 @@ class ModeLogic:
                         changed = True
                     continue
                 if new[j] != STUCK:
+                    continue
+                if j in self._stop_set:
+                    if self._stop_release(t, x, j, lam_f[j], new):
+                        new[j] = FREE
+                        changed = True
                     continue
                 qj = None if q is None else q[j]
                 tau0, tau0_max = self._call(dev, "capacities", qj, t, left)
@@ -289,7 +312,7 @@ class ModeLogic:
         q = self.q_from(t, x, v, z)
         edge = []
         for j, dev in enumerate(self.devices):
-            if modes[j] != STUCK:
+            if modes[j] != STUCK or j in self._stop_set:
                 continue
             if dev.coupled:
                 hi, lo = dev.limits(lam_f[j], lam[self.coupled[j]])
@@ -380,10 +403,12 @@ class ModeLogic:
     def snapshot(self):
         """The state ``settle`` leaves behind (driving sides, relief events, engagement), to ``restore`` it with
         the values of a settle that is not repeated (a run starting where an earlier one started)."""
-        return self.quadrant.copy(), list(self._relief), self.engaged.copy(), set(self._flips)
+        return (self.quadrant.copy(), list(self._relief), self.engaged.copy(), set(self._flips),
+                self._stop_snapshot())
 
     def restore(self, snap):
-        quadrant, relief, engaged, flips = snap
+        quadrant, relief, engaged, flips, stops = snap
+        self._stop_restore(stops)
         self.quadrant[:] = quadrant
         self._relief = list(relief)
         self.engaged = engaged.copy()

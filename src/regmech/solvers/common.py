@@ -505,3 +505,17 @@ def run_deadline(solver: str, model, t_end) -> Deadline | None:
     if limit is None:
         return None
     return Deadline(limit, solver, getattr(model, "name", "?"), t_end)
+
+
+def refuse_impacts(model, solver: str) -> None:
+    """Raise ``SimulationError`` naming the hard stops (devices with rigid impacts, ``impact = True``) of
+    ``model``: solver ``solver`` cannot apply their speed jumps (its error estimate or its step assumes
+    continuous speeds), and stepping across an impact would be a silently wrong answer."""
+    stops = [d for d in model.compile().structure.devices if getattr(d, "impact", False)]
+    if stops:
+        names = ", ".join(f"{type(d).__name__} '{d.name}'" for d in stops[:6]) + (" ..." if len(stops) > 6 else "")
+        raise SimulationError(
+            f"solver '{solver}' cannot run model '{model.name}': {names} {'has' if len(stops) == 1 else 'have'} "
+            f"rigid impacts (speeds that jump at located events), which this solver does not apply. Use "
+            f"solver='ida' (or 'auto') or an adaptive scipy solver such as 'scipy:DOP853'; or an EndStop (a "
+            f"compliant contact) instead of the hard stop.")

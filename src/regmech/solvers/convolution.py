@@ -131,7 +131,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import ParameterError, SimulationError
 from . import register
-from .common import StepBudget, check_link_spread
+from .common import StepBudget, check_link_spread, refuse_impacts
 from .divergence import MAX_GROWTH
 from .ode_driver import EPS, KnotClock, Stepper, hermite, simulate_ode
 from .options import (Choice, Integer, OptionSet, Real, atol_option, chatter_options, max_events_option,
@@ -601,6 +601,7 @@ def simulate_convolution(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, 
     With fixed steps (``h``), ``tol`` (default None: no estimate) bounds the Richardson estimate of the
     global error (order 2, ``regmech.solvers.richardson``) as for the other fixed-step solvers.
     """
+    refuse_impacts(model, "convolution")
     if tol is not None and h is None:
         raise ParameterError("solver 'convolution': tol (the Richardson estimate of fixed steps) needs a step h; "
                              "with step control (no h) ask for accuracy=... instead")

@@ -119,6 +119,7 @@ import scipy.sparse as sp
 
 from ..errors import AccuracyError, ParameterError, SimulationError, StructureError
 from . import register
+from .common import refuse_impacts
 from .expm_coefficients import DROP_TOL, UNIT_ROUNDOFF, coefficients, fit_matrix, fit_nodes
 from .ode_driver import KnotClock, Stepper
 from .options import (FIXED_MAX_STEPS, Choice, Flag, Integer, OptionSet, Real, chatter_options,
@@ -232,6 +233,10 @@ def _nonlinear_components(c, t_start: float, t_end: float, samples: int) -> list
             if getattr(c.friction, "inputs", None) and c.friction.inputs[j]:
                 # a law reading the state (a thermal mass's temperature, a controller's command as normal
                 # force): its force is no input of the structural-matrix form
+                bad.append(f"{type(dev).__name__} '{dev.name}'")
+                continue
+            if getattr(dev, "impact", False):
+                # a hard stop: its impacts make the speeds jump (no linear flow; ``common.refuse_impacts``)
                 bad.append(f"{type(dev).__name__} '{dev.name}'")
                 continue
             if getattr(dev, "coupled", False):
@@ -800,6 +805,7 @@ def simulate_expm(model, t_start=0.0, t_end=1.0, dt_out=None, h=None, order_p=2,
     ``tol`` (default 1e-3): bound of the Richardson estimate of the global error relative to the range of
     each kind of state (``AccuracyError`` beyond it; None: no estimate; see regmech.solvers.richardson).
     """
+    refuse_impacts(model, "expm")
     c = model.compile()
     check_linear(c, t_start, t_end)
     floor = roundoff_floor(c)

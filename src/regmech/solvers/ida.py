@@ -455,8 +455,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                     events.append(Event(t_ev, name, old, new, kind))
             if friction_hit:
                 y, yp, new_modes, changes = fr.settle(t_ev, (y_ev, yp_ev), modes, crossed=f_crossed)
-                for (name, old, new, kind) in changes:
-                    events.append(Event(t_ev, name, old, new, kind))
+                for (name, old, new, kind, *value) in changes:
+                    events.append(Event(t_ev, name, old, new, kind, value=value[0] if value else None))
                     guard.record(t_ev, name)
                 modes = new_modes
                 rec.add(t_ev, y, yp, modes)
@@ -487,8 +487,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
         c._t_right = t_stop
         if fr:
             y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
-            for (name, old, new, kind) in changes:
-                events.append(Event(t, name, old, new, kind))
+            for (name, old, new, kind, *value) in changes:
+                events.append(Event(t, name, old, new, kind, value=value[0] if value else None))
                 guard.record(t, name)
             modes = new_modes
         else:

@@ -1053,8 +1053,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         """The mode logic at an event or a breakpoint: its changes recorded (events, chatter guard, growth
         watch); returns the restart row and the new modes."""
         y, yp, new_modes, changes = fr.settle(t, state, modes, crossed=crossed)
-        for (comp, old, new, kind) in changes:
-            events.append(Event(t, comp, old, new, kind))
+        for (comp, old, new, kind, *value) in changes:
+            events.append(Event(t, comp, old, new, kind, value=value[0] if value else None))
             guard.record(t, comp)
         if changes:
             growth.mode_change()

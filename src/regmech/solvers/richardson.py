@@ -90,7 +90,7 @@ import numpy as np
 
 from ..errors import AccuracyError, SimulationError
 from ..hybrid import attach
-from .common import check_times, output_grid, signal_breakpoints
+from .common import check_times, output_grid, refuse_impacts, signal_breakpoints
 from .ode_driver import GridProbe, GroupedKnotClock, KnotClock, simulate_ode
 
 #: default bound of the estimated error relative to the range of the states of a kind
@@ -228,6 +228,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
     ``driver``: options of ``simulate_ode``.
     Raises ``AccuracyError`` when the estimate exceeds ``tol``.
     """
+    refuse_impacts(model, name)
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
     needed = math.ceil(round((t_end - t_start) / h, 6))     # 0.3 / 0.1 is 2.9999999999999996
     if max_steps is not None and needed > max_steps:
