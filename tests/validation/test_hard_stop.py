@@ -303,3 +303,66 @@ def test_auto_never_picks_a_solver_that_refuses():
     res = _inertia_model(0.8).simulate(t_end=1.0, dt_out=1e-2)
     assert res.stats.solver in ("ida", "scipy:Radau", "scipy:DOP853")
     assert [ev.kind for ev in res.events] == ["impact"]
+
+
+@pytest.mark.parametrize("kw", [IDA, DOP], ids=["ida", "dop853"])
+def test_support_on_a_moving_body_momentum(kw):
+    """The support on a free inertia: the impulse acts on both bodies, the total momentum J_A w_A + J_B w_B is
+    unchanged by every impact, the relative speed jumps to -e times its value, kinetic energy + stop.heat stays
+    at its start value. Relative motion 3 rad/s from phi_rel = 0: first impact at 0.2 / 3 s (upper), the
+    next after (0.2 + 0.1) / (e 3) s (lower)."""
+    e = 0.6
+    m = rm.Model("free_pair")
+    a = m.add(Inertia("A", J=1.0, phi0=0.0, w0=3.0))
+    b = m.add(Inertia("B", J=2.0, phi0=0.0, w0=0.0))
+    stop = m.add(HardStop("stop", lower=-0.1, upper=0.2, e=e))
+    m.connect(a.flange_b, stop.flange)
+    m.connect(stop.support, b.flange_a)
+    res = m.simulate(t_end=1.0, dt_out=1e-3, **kw)
+    ev = [x for x in res.events if x.kind == "impact"]
+    assert [x.new_mode for x in ev] == [1, -1, 1, -1]
+    assert ev[0].t == pytest.approx(0.2 / 3, abs=1e-9) and ev[1].t == pytest.approx(0.2 / 3 + 0.3 / (e * 3), abs=1e-9)
+    p = res["A.w"] + 2.0 * res["B.w"]
+    assert np.ptp(p) <= 1e-12 * 3
+    for x in ev:
+        w = _rows_at(res, "stop.w_rel", x.t)
+        assert w[-1] == pytest.approx(-e * w[0], rel=1e-9)
+        m_eff = 1.0 * 2.0 / 3.0
+        assert x.value == pytest.approx((1 - e ** 2) * m_eff * w[0] ** 2 / 2, rel=1e-9)
+    energy = res["A.kinetic"] + res["B.kinetic"] + res["stop.heat"]
+    assert np.ptp(energy) <= 1e-10 * energy[0]
+
+
+@pytest.mark.parametrize("kw", [IDA, DOP], ids=["ida", "dop853"])
+def test_impact_reverses_a_sliding_brake(kw):
+    """A brake (1 N m) and a hard stop (e = 0.3) on one inertia starting at the upper limit, pushed into it by
+    2 N m: the brake gives its 1 N m and the stop holds the rest (holding in turn). At t = 0.5 s the drive turns
+    to -4 N m: the stop releases, the body falls at -3 rad/s^2 and hits the lower limit at t = 1.5 s with
+    -3 rad/s; the impulse reverses its slip, so the brake turns Forward at once (a = -5 rad/s^2), sticks
+    for no time at 1.68 s and slides Backward; the second impact is sqrt(2 h / 3) later with h the rise."""
+    from regmech.components import Brake
+    from regmech.signals import Step
+    e = 0.3
+    m = rm.Model("brake_stop")
+    j = m.add(Inertia("J", J=1.0, phi0=0.5, w0=0.0))
+    drive = m.add(Torque("drive", tau=Step(height=-6.0, start_time=0.5, offset=2.0)))
+    brake = m.add(Brake("brake", mu=0.5, fn_max=2.0, f_normalized=1.0))
+    stop = m.add(HardStop("stop", lower=-1.0, upper=0.5, e=e))
+    m.connect(drive.flange, j.flange_a)
+    m.connect(j.flange_b, stop.flange)
+    m.connect(j.flange_b, brake.flange)
+    res = m.simulate(t_end=2.0, dt_out=1e-3, **kw)
+    assert res.at("stop.tau", 0.2) == pytest.approx(1.0, rel=1e-9)
+    assert res.at("brake.tau", 0.2) == pytest.approx(1.0, rel=1e-9)
+    w_r = e * 3.0
+    t_top = 1.5 + w_r / 5.0
+    h = w_r ** 2 / (2 * 5.0)
+    t2 = t_top + math.sqrt(2 * h / 3.0)
+    got = [(x.component, x.kind, x.old_mode, x.new_mode) for x in res.events]
+    assert got == [("brake", "mode", 1, -1), ("stop", "contact", 1, 0), ("stop", "impact", 0, -1),
+                   ("brake", "mode", -1, 1), ("brake", "mode", 1, -1), ("stop", "impact", 0, -1),
+                   ("brake", "mode", -1, 1), ("brake", "mode", 1, -1)]
+    times = [x.t for x in res.events]
+    np.testing.assert_allclose(times[:7], [0.5, 0.5, 1.5, 1.5, t_top, t2, t2], rtol=0, atol=1e-8)
+    w = _rows_at(res, "J.w", 1.5)
+    assert w[0] == pytest.approx(-3.0, rel=1e-9) and w[-1] == pytest.approx(w_r, rel=1e-9)

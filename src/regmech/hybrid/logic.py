@@ -100,6 +100,17 @@ class ModeLogic:
         x, v, a, lam, z = c.unpack(y0, yp0)
         q = self.q_from(t, x, v, z)     # inputs of the laws from the state (None without any)
         new = old.copy()
+        # 0. hard stops first: a limit reached is an impact (the speeds jump, ``impacts``), a holding contact whose
+        #    release function crossed lets go; the other devices then decide on the speeds after the impulse
+        self._modes_now = old
+        crossed = np.zeros(self.n_events) if crossed is None else np.asarray(crossed)
+        impacted = False
+        if self._stops:
+            n_log = len(self._impact_log)
+            for j in self._stops:
+                new[j], v = self._stop_step(j, self.devices[j], int(old[j]), x, v, z, crossed, initial, t, 1e-9 *
+                                            max(1.0, float(np.abs(v).max(initial=0.0))))
+            impacted = len(self._impact_log) > n_log
         w = self.w_rel(v)
         arel = self.w_rel(a)
         scale = 1e-9 * max(1.0, float(np.abs(v).max(initial=0.0)))
@@ -112,13 +123,9 @@ class ModeLogic:
             w[j] = 0.0
         # round-off of the relative accelerations (a device at rest, held by others, has |a_rel| below it)
         a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
-        self._modes_now = old
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
             if j in self._stop_set:
-                # a hard stop: a limit reached is an impact (the speeds jump, ``impacts``), a holding contact whose
-                # release function crossed lets go
-                new[j], v = self._stop_step(j, dev, int(old[j]), x, v, z, crossed, initial, t, scale)
                 continue
             engaged = self._call(dev, "normal_force", None if q is None else q[j], t, left) > 0
             if dev.coupled:
@@ -142,6 +149,9 @@ class ModeLogic:
             elif old[j] == HELD:
                 # its holders kept it at zero speed (to round-off): it holds again unless it has moved
                 new[j] = FORWARD if w[j] > scale else BACKWARD if w[j] < -scale else STUCK
+            elif impacted and old[j] in (FORWARD, BACKWARD) and old[j] * w[j] < -scale:
+                # an impact's impulse reversed its slip: it slides the other way now
+                new[j] = -old[j]
             elif old[j] in (FORWARD, BACKWARD) and (crossed[2 * j] != 0 or
                                                      (abs(w[j]) <= scale and
                                                       (old[j] * arel[j] < -a_tol or

@@ -197,6 +197,8 @@ def friction_laws(fr):
     laws = []
     for j, dev in enumerate(fr.devices):
         what = f"{type(dev).__name__} '{dev.name}'"
+        if getattr(dev, "impact", False):
+            return f"{what} (rigid impacts: the speeds jump at events, applied in Python)"
         if dev.coupled or dev.one_way:
             return f"{what} (lossy gears and one-way clutches run their mode logic in Python)"
         if fr.inputs[j]:
