@@ -366,3 +366,19 @@ def test_impact_reverses_a_sliding_brake(kw):
     np.testing.assert_allclose(times[:7], [0.5, 0.5, 1.5, 1.5, t_top, t2, t2], rtol=0, atol=1e-8)
     w = _rows_at(res, "J.w", 1.5)
     assert w[0] == pytest.approx(-3.0, rel=1e-9) and w[-1] == pytest.approx(w_r, rel=1e-9)
+
+
+def test_two_stops_on_one_limit_the_first_takes_the_impact():
+    """Two hard stops at the same limit of one inertia reach it at one instant: the first in model order takes the
+    impact (w -> -e1 w); the second finds the body moving away and gives no impact (documented rule)."""
+    m = rm.Model("two")
+    body = m.add(Inertia("J", J=1.0, phi0=0.0, w0=1.0))
+    s1 = m.add(HardStop("s1", lower=-1.0, upper=0.5, e=0.5))
+    s2 = m.add(HardStop("s2", lower=-1.0, upper=0.5, e=0.9))
+    m.connect(body.flange_b, s1.flange)
+    m.connect(body.flange_b, s2.flange)
+    for kw in (IDA, DOP):
+        res = m.simulate(t_end=2.0, dt_out=1e-3, **kw)
+        assert [(x.component, x.kind, x.t) for x in res.events] == [("s1", "impact", pytest.approx(0.5, abs=1e-9))]
+        assert res.at("J.w", 1.0) == pytest.approx(-0.5, rel=1e-9)
+        assert res["s2.heat"][-1] == 0.0 and res["s1.heat"][-1] == pytest.approx(0.375, rel=1e-9)

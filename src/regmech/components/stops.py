@@ -35,7 +35,7 @@ import sympy
 
 from ..component import Device, Param, Subsystem
 from ..errors import ParameterError
-from ..modes import FREE, HELD
+from ..modes import FREE
 from ..ports import TRANSLATIONAL
 from .friction import FrictionContact, FrictionDevice
 from .inertial import Fixed, Mass
@@ -261,8 +261,9 @@ class HardStop(FrictionDevice):
         return lambda t, left=False: (1.0, 0.0, 0.0)
 
     def contact_state(self, mode, side) -> int:
-        """The contact code of a mode: ``side`` (+1 upper, -1 lower) while holding, 0 when free."""
-        return 0 if mode in (FREE, HELD) else int(side)
+        """The contact code of a mode: ``side`` (+1 upper, -1 lower) while holding (Stuck, or Held by other stuck
+        devices on its motion), 0 when free."""
+        return 0 if mode == FREE else int(side)
 
 
 class LinearHardStop(HardStop):

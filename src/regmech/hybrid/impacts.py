@@ -100,6 +100,10 @@ class Impacts:
             return FREE, v
         side = 1 if crossed[2 * j] != 0 else -1
         self.stop_side[j] = side
+        if side * w < -scale:
+            # already moving away (another stop's impulse at this instant reversed it): no impact; it restarts inside
+            self._nudge(t, x, j, side, dev, self._modes_now)
+            return FREE, v
         return self._impact(j, dev, side, w, x, v, z, t)
 
     def _impact(self, j, dev, side, w, x, v, z, t):
