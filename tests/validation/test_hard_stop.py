@@ -382,3 +382,24 @@ def test_two_stops_on_one_limit_the_first_takes_the_impact():
         assert [(x.component, x.kind, x.t) for x in res.events] == [("s1", "impact", pytest.approx(0.5, abs=1e-9))]
         assert res.at("J.w", 1.0) == pytest.approx(-0.5, rel=1e-9)
         assert res["s2.heat"][-1] == 0.0 and res["s1.heat"][-1] == pytest.approx(0.375, rel=1e-9)
+
+
+@pytest.mark.parametrize("kw", [IDA, DOP], ids=["ida", "dop853"])
+def test_start_at_a_limit_holds_or_releases(kw):
+    """Starting at rest on the upper limit: pushed into it (3 N m) the stop holds 3 N m from t = 0 (Stuck); pulled
+    away (-3 N m) it lets go at once and the body (J = 1) reaches the lower limit 1.5 rad away at t = 1 s."""
+    for tau, holds in ((3.0, True), (-3.0, False)):
+        m = rm.Model("start_at_limit")
+        body = m.add(Inertia("J", J=1.0, phi0=0.5, w0=0.0))
+        drive = m.add(Torque("drive", tau=tau))
+        stop = m.add(HardStop("stop", lower=-1.0, upper=0.5, e=0.5))
+        m.connect(drive.flange, body.flange_a)
+        m.connect(body.flange_b, stop.flange)
+        res = m.simulate(t_end=1.2, dt_out=1e-2, **kw)
+        if holds:
+            assert not res.events and np.all(res["stop.tau"] == pytest.approx(3.0, rel=1e-12))
+            assert np.all(res["J.phi"] == pytest.approx(0.5, abs=1e-12))
+        else:
+            assert res["stop.tau"][0] == 0.0 and res["stop.mode"][0] == 2
+            ev = [(x.kind, x.new_mode) for x in res.events]
+            assert ev == [("impact", -1)] and res.events[0].t == pytest.approx(1.0, abs=1e-9)
