@@ -95,7 +95,11 @@ class Impacts:
             self.stop_side[j] = side
             return STUCK, v          # holding; step 2 releases it at once when the load pulls away
         if old in (STUCK, HELD):
-            return (FREE if crossed[2 * j] != 0 else old), v
+            if crossed[2 * j] != 0:
+                # its release function crossed: the contact force would pull; it restarts just inside the limit
+                self._nudge(t, x, j, self.stop_side[j], dev, self._modes_now)
+                return FREE, v
+            return old, v
         if crossed[2 * j] == 0 and crossed[2 * j + 1] == 0:
             return FREE, v
         side = 1 if crossed[2 * j] != 0 else -1
