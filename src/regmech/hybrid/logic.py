@@ -48,7 +48,7 @@ class ModeLogic:
             state = c.initial_y(t, np.full(self.mf, FREE))
         old = np.array(modes, dtype=int)
         lam_rate = state[1][c.ilam[self.offset:]]        # d lam/dt at the event (IDA's interpolant)
-        side_old = self.stop_side.copy()
+        stop_side_old = self.stop_side.copy()      # hard stops' limits before this event
         self._impact_log = []
         y, yp, new, scale = self._settle_once(t, state, old, crossed, initial, lam_rate)
         # The modes settled here must be what the logic finds again at this instant with nothing crossed: a device
@@ -79,7 +79,8 @@ class ModeLogic:
         if not initial:
             for j, dev in enumerate(self.devices):
                 if j in self._stop_set:
-                    was, now = dev.contact_state(old[j], side_old[j]), dev.contact_state(new[j], self.stop_side[j])
+                    was = dev.contact_state(old[j], stop_side_old[j])
+                    now = dev.contact_state(new[j], self.stop_side[j])
                     if was != now:
                         changes.append((dev.name, was, now, "contact"))
                     continue
