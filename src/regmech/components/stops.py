@@ -208,9 +208,11 @@ class HardStop(FrictionDevice):
       rise above ``delta`` (``(e w_rel-)^2 <= 2 a_in delta``), or when it comes within ``ZENO_DT *
       max(1, |t|)`` s of the stop's previous impact (``ZENO_DT = 1e-10``). Under a constant load ``a`` the
       flights left out last ``2 w_r / (a (1 - e))`` in all, with the cancelled rebound ``w_r <=
-      max(1e-6 w_max, sqrt(2 a delta))``: the contact starts that much before the geometric series' limit
-      at most (4e-6 s for w_max = 1.4 rad/s, a = 2 rad/s^2, e = 0.5). Every loop is bounded
-      (``max_events``).
+      max(1e-6 w_max, sqrt(2 a delta))``, and the offset's work taken from the last rebounds shortens
+      them by up to as much again: the contact starts at most ``4 w_r / (a (1 - e))`` before the
+      geometric series' limit (measured with w_max = 1.4 rad/s, a = 2 rad/s^2: e = 0.5: 3.5e-6 s after
+      21 impacts; e = 0.9: 2.5e-5 s after 128; e = 0.99: 2.6e-4 s of 140.7 s after 1341 impacts). The
+      impacts to rest number about ``ln(1e-6) / ln(e)``. Every loop is bounded (``max_events``).
 
     ``0 <= e <= 1`` [1] the coefficient of restitution. The start must be inside the limits (at a limit
     only when not moving into it; there it holds, or releases at once when the load pulls away).
