@@ -193,26 +193,32 @@ class Result:
         jumps = self.impact_losses(name[:-len(".heat")])
         return val if jumps is None else np.asarray(val, dtype=float) + jumps
 
-    def integral(self, name: str, error: bool = False):
+    def integral(self, name: str, error: bool = False, tol: float | None = None):
         """``int_{t_0}^{t} p dt`` of signal ``name`` (a power [W] gives an energy [J]) at every output instant,
         computed from the model's laws between the output rows, not by the trapezoid over them: an interval the
         rows do not resolve (a clutch locking up inside it, an oscillation faster than ``dt_out``) is integrated
         again from its first row (``regmech.solvers.quadrature``). Its error is within the run's accuracy
         (``accuracy=``; else its ``rtol``; else 1e-6) times ``int |p| dt``, plus what the rows' own error
-        carries. ``error=True`` returns ``(values, estimate)``. A device's ``heat`` is this integral of its
-        ``heat_flow``; ``res.integrals([...])`` computes several at once (they share the work)."""
-        hit = self.integrals([name])[name]
+        carries. ``error=True`` returns ``(values, estimate)``; ``tol`` asks for another relative error than the
+        run's. A device's ``heat`` is this integral of its ``heat_flow``; ``res.integrals([...])`` computes
+        several at once (they share the work)."""
+        hit = self.integrals([name], tol=tol)[name]
         return hit if error else hit[0]
 
-    def integrals(self, names) -> dict:
-        """``{name: (values, estimate)}`` of ``integral`` for several signals at once."""
+    def integrals(self, names, tol: float | None = None) -> dict:
+        """``{name: (values, estimate)}`` of ``integral`` for several signals at once (``tol``: as there)."""
         names = list(names)
+        if tol is None:
+            tol = self._quadrature_tol()
+        elif isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 < tol < 1:
+            raise ParameterError(f"res.integrals(tol={tol!r}): tol is a relative error in (0, 1), e.g. 1e-6")
+        tol = float(tol)
         for nm in names:
             if not isinstance(nm, str) or not self._traj.has(nm):
                 raise UnknownSignalError(self._unknown(nm) if isinstance(nm, str) else
                                          f"res.integral({describe(nm)}): give a signal's name, e.g. "
                                          f"res.integral('drive.power')")
-        todo = [nm for nm in dict.fromkeys(names) if ("integral", nm) not in self._cache]
+        todo = [nm for nm in dict.fromkeys(names) if ("integral", nm, tol) not in self._cache]
         if todo:
             # the quadrature follows the model's laws, which the solver layer knows: ``simulate`` hands it over
             cumulative = getattr(self, "integrator", None)
@@ -220,15 +226,15 @@ class Result:
                 raise RegmechError(f"res.integral({todo[0]!r}): this result of model '{self.model_name}' was not "
                                    f"made by simulate() (or was saved before integrals existed), so the laws "
                                    f"between its rows are unknown; run the model again to integrate its signals")
-            got, counts = cumulative(self._traj, todo, self._quadrature_tol())
+            got, counts = cumulative(self._traj, todo, tol)
             for nm, val in got.items():
-                self._cache[("integral", nm)] = val
+                self._cache[("integral", nm, tol)] = val
             q = self.stats.extra.setdefault("quadrature", {"signals": 0, "intervals": 0, "reintegrated": 0,
                                                            "rhs_calls": 0})
             q["signals"] += len(todo)
             for k, v in counts.items():
                 q[k] = q.get(k, 0) + v
-        return {nm: self._cache[("integral", nm)] for nm in names}
+        return {nm: self._cache[("integral", nm, tol)] for nm in names}
 
     def _quadrature_tol(self) -> float:
         """The relative error ``integral`` aims at: the run's accuracy, else its rtol, else 1e-6."""

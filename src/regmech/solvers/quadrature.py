@@ -18,24 +18,28 @@ record their rows). Two tests decide whether the rows resolve the interval:
 * the quadrature: Simpson's rule ``S = h (p_k + 4 p_m + p_k+1) / 6`` against
   the trapezoid ``T = h (p_k + p_k+1) / 2``; ``|S - T|`` is the trapezoid's
   error for a smooth integrand, and Simpson's is smaller by the factor
-  ``r = |S - T| / (h mean|p|)``, ``(h / tau)^2`` for an integrand smooth on
-  the time scale ``tau`` (a conservative bound of the rule's ``h^5 p^(4)``);
+  ``r / 10``, ``r = |S - T| / (h mean|p|)`` (``(h / tau)^2 / 12`` for an
+  integrand smooth on the time scale ``tau``; the rule's ``h^5 p^(4) / 2880``
+  is about ``r / 20`` of ``|S - T|``);
 * the motion: the defect of the interpolant, ``g(t_m, u_m) - u_m'``, times
-  ``h / 4`` relative to each state's scale (the state error it stands for),
-  times ``h mean|p|`` (what that error carries into the integral).
+  ``h / 4`` relative to each state's scale (the state error it stands for).
+  Where the motion and ``p`` share their time scale it is about ``36 r^2``;
+  far above that (``100 r^2 + tol``) the motion changes inside the interval
+  in a way the three values of ``p`` do not show (a brake stopping inside).
 
-An interval keeps ``S`` when ``r |S - T|`` plus the defect's part is within
-its share of the tolerance and ``|S - T|`` within 100 times that share: a
-kink of ``p`` inside (a friction table's knee) makes Simpson's error as large
-as ``|S - T|``, and a few such intervals stay within the run's tolerance. Any other is integrated again from
+The error estimate of an interval is ``r |S - T| / 10``, or ``|S - T|`` where the
+interval's ``|S - T| / h^3`` exceeds four times both neighbours' (a kink of
+``p`` inside, a friction table's knee: Simpson's error is then as large as
+``|S - T|``). Intervals keep ``S`` from the smallest estimate up while the
+estimates add up to half the run's tolerance, unless the motion test fails.
+Any other is integrated again from
 its first row with the model's right-hand side (``u' = g(t, u)`` in the
 interval's modes; scipy's DOP853, or Radau when the interval is stiff for
 it) at a tolerance a hundred times tighter, and ``p`` is summed by 3-point
 Gauss-Legendre on each of that run's steps (order 6). The signals' kinks
 (a friction table's knee) fall inside a step there, but the steps are short.
 
-The error allowed is ``tol * scale`` for the whole run, shared between the
-intervals by their length; ``scale`` is ``int |p| dt`` (the trapezoid of
+The error allowed is ``tol * scale`` for the whole run; ``scale`` is ``int |p| dt`` (the trapezoid of
 ``|p|``) and ``tol`` the run's accuracy (``accuracy=``), else its ``rtol``,
 else 1e-6. The estimate returned is the sum of the kept intervals' estimates
 and of the re-integrations' own tolerance shares.
@@ -55,6 +59,11 @@ from ..errors import AccuracyError
 MAX_RHS_CALLS = 200_000
 #: the re-integration's tolerance relative to the integral's (states far more accurate than the sum needs)
 TIGHTER = 1e-2
+#: Simpson's error estimate as a share of ``r |S - T|``: asymptotically 1/20 (``h^5 p^(4) / 2880`` over
+#: ``(h^3 p'' / 12)^2 / (h p)`` on a smooth integrand), with a factor 2 of margin
+SIMPSON_SHARE = 0.1
+#: an interval whose Hermite defect exceeds this times r^2 (plus tol) is integrated again (``cumulative``)
+DEFECT_MARGIN = 100.0
 #: Gauss-Legendre nodes and weights on [0, 1], 3 points (exact for polynomials of degree 5)
 _GL_X = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _GL_W = np.array([5.0, 8.0, 5.0]) / 18.0
@@ -250,20 +259,23 @@ def cumulative(traj, names, tol=1e-6):
         np.zeros(len(live))
     diff = np.abs(simpson - trap[:, live])
     # Simpson's own error: for an integrand smooth on the time scale tau, |S - T| ~ h^3 |p''| / 12 is the
-    # trapezoid's error and Simpson's is smaller by r = |S - T| / (h mean|p|) ~ (h / tau)^2 (conservatively:
-    # the rule's h^5 |p''''| / 2880 is some 1/240 of that); plus what the midpoint's state error (the defect)
-    # carries into p
+    # trapezoid's error and Simpson's h^5 |p^(4)| / 2880 is about r / 20 of it, r = |S - T| / (h mean|p|) ~
+    # (h / tau)^2 / 12 (SIMPSON_SHARE keeps a factor 2 of margin on that)
     mean_p = hl[None, :] * (np.abs(P[:, live]) + np.abs(PM) + np.abs(P[:, live + 1])) / 3.0
     r = np.minimum(1.0, diff / np.where(mean_p > 0, mean_p, np.inf))
-    err = diff * r + mean_p * defect[None, :]
-    # a kink of p inside the interval (a friction table's knee) makes Simpson's error as large as |S - T|
-    # whatever r says: such an interval is kept only while |S - T| is within 1 / TIGHTER of its share (a few
-    # knees in a run of many intervals then stay within the whole run's tolerance)
+    err = diff * r * SIMPSON_SHARE
+    # the midpoint's state error is covered by r |S - T| where the motion and p share their time scale (the
+    # Hermite state's relative error ~ (h/tau)^4 / 384 against r ~ (h/tau)^2 / 12: the defect ~ 36 r^2); a
+    # defect far above that says the motion changes inside the interval in a way p's three values do not show
+    # (a brake stopping inside it): integrated again whatever the estimate
+    unresolved = defect > DEFECT_MARGIN * np.max(r, axis=0) ** 2 + tol
     # the budget is the whole run's: intervals are kept from the smallest estimate up while their sum stays
     # within half of it (errors gather where the motion changes; a share by length would re-integrate many
     # intervals whose errors are far below the run's tolerance in sum)
+    suspect = _kink_suspects(diff, hl, live)
+    err[:, suspect] = diff[:, suspect]          # a kink inside: Simpson's error is as large as |S - T|
     frac = np.max(np.divide(err, tol_abs[:, None], out=np.zeros_like(err), where=tol_abs[:, None] > 0), axis=0)
-    keep = np.all(diff * TIGHTER <= share, axis=0) | ~_kink_suspects(diff, hl, live)
+    keep = ~unresolved
     order = np.flatnonzero(keep)[np.argsort(frac[keep], kind="stable")]
     keep[order[np.cumsum(frac[order]) > 0.5]] = False
     inc[:, live[keep] + 1] = simpson[:, keep]
