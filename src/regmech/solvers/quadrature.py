@@ -250,7 +250,14 @@ def cumulative(traj, names, tol=1e-6):
         modes_rows = np.zeros((n, 0), np.int64)
     # ODE states at the rows, their slopes in each interval's modes (the end's as a left limit), the Hermite
     # midpoints, and the rows of the consistent values there: all intervals first, then one signal evaluation
-    U = np.array([c.ode_state(y) for y in traj.Y])
+    Y_rows = np.asarray(traj.Y)
+    U = np.concatenate([Y_rows[:, c.ix[c.Kx]], Y_rows[:, c.iv[c.Kv]], Y_rows[:, c.iz]], axis=1)   # ode_state
+    # the slopes u' = (v_K, a_K, z') at the rows from the rows themselves (a model without internal states:
+    # the rows keep the accelerations, no right-hand side to evaluate); z' is not kept, so a model with
+    # internal states evaluates g at both ends of each interval in its modes
+    G_rows = None
+    if c.nz == 0:
+        G_rows = np.concatenate([Y_rows[:, c.iv[c.Kx]], np.asarray(traj.YPv)[:, c.Kv]], axis=1)
     scale_u = np.maximum(np.max(np.abs(U), axis=0), np.ptp(U, axis=0))
     scale_u = np.where(scale_u > 0, scale_u, 1.0)
     counter = [0]
@@ -260,8 +267,11 @@ def cumulative(traj, names, tol=1e-6):
     quads = [_quadrant(c, traj.Y[k], modes_rows[k]) for k in live]
     for i, k in enumerate(live):
         t0, t1, hk = float(t[k]), float(t[k + 1]), float(h[k])
-        f = _rhs(c, modes_rows[k], t1, counter, quads[i])
-        g0, g1 = f(t0, U[k]), f(t1, U[k + 1])
+        if G_rows is not None:
+            g0, g1 = G_rows[k], G_rows[k + 1]
+        else:
+            f = _rhs(c, modes_rows[k], t1, counter, quads[i], limit=np.inf)   # two a row: bounded by the rows
+            g0, g1 = f(t0, U[k]), f(t1, U[k + 1])
         mid_t[i] = 0.5 * (t0 + t1)
         mid_u[i] = 0.5 * (U[k] + U[k + 1]) + hk * (g0 - g1) / 8.0
         dmid[i] = 1.5 * (U[k + 1] - U[k]) / hk - 0.25 * (g0 + g1)
