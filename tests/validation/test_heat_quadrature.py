@@ -151,3 +151,23 @@ def test_books_close_through_a_lossy_planetary_whose_driving_side_changes():
     scale = float(kin.max())
     assert np.max(np.abs(books)) < 1e-6 * scale
     assert np.all(np.diff(res["lplanet1.heat"]) >= -1e-9 * scale)       # the gear never supplies energy
+
+
+def test_an_interval_that_cannot_be_integrated_again_keeps_simpson_with_a_warning(monkeypatch):
+    """Fuzz seed 60011: the re-integration could not get through intervals after a gearbox's time event, and
+    reading ``brake1.heat`` raised on every solver. Now the interval keeps Simpson's value, its whole |S - T|
+    joins the estimate, a RuntimeWarning names the signal and the remedy, and at most MAX_FAILURES are tried."""
+    import regmech.solvers.quadrature as quadrature
+    tries = []
+
+    def fails(traj, names, k, *args, **kwargs):
+        tries.append(k)
+        return None, 10
+    monkeypatch.setattr(quadrature, "_reintegrate", fails)
+    res = brake_model().simulate(0.05, dt_out=6.22e-4, solver="ida", rtol=1e-8)
+    with pytest.warns(RuntimeWarning, match="brake1.heat_flow.*finer dt_out"):
+        q, est = res.integral("brake1.heat_flow", error=True)
+    assert np.all(np.isfinite(q)) and 0 < len(tries) <= quadrature.MAX_FAILURES
+    _, heat = brake_heat_by_hand()
+    assert abs(q[-1] - heat) <= est                       # the estimate covers the error it leaves
+    assert res.stats.extra["quadrature"]["failed"] >= 1
