@@ -171,3 +171,20 @@ def test_an_interval_that_cannot_be_integrated_again_keeps_simpson_with_a_warnin
     _, heat = brake_heat_by_hand()
     assert abs(q[-1] - heat) <= est                       # the estimate covers the error it leaves
     assert res.stats.extra["quadrature"]["failed"] >= 1
+
+
+def test_a_law_without_a_number_between_the_rows_is_an_error_not_a_nan(monkeypatch):
+    """The integral never comes back NaN: a signal whose law gives no number at a midpoint is a SimulationError
+    naming the signal, its component and the interval."""
+    import regmech.solvers.quadrature as quadrature
+    real = quadrature._sub
+
+    def poisoned(traj, times, Y, YP, modes):
+        sub = real(traj, times, Y, YP, modes)
+        get = sub.get
+        sub.get = lambda name: np.full(len(times), np.nan) if name == "brake1.heat_flow" else get(name)
+        return sub
+    monkeypatch.setattr(quadrature, "_sub", poisoned)
+    res = brake_model().simulate(0.05, dt_out=6.22e-4, solver="ida", rtol=1e-8)
+    with pytest.raises(rm.SimulationError, match="brake1.heat_flow.*not finite.*component 'brake1'"):
+        res["brake1.heat"]

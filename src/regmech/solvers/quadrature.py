@@ -113,11 +113,8 @@ def _quadrant(c, y, modes):
     fr = c.friction if c.mf else None
     if fr is None or not fr._coupled_rows:
         return None
-    saved = fr.quadrant
-    try:
-        return np.array(fr._iterate_quadrants(y[c._sv], y[c._slam], modes), int, copy=True)
-    finally:
-        fr.quadrant = saved
+    # a copy: ``_iterate_quadrants`` returns the segment's own array where no side changes
+    return np.array(fr._iterate_quadrants(y[c._sv], y[c._slam], modes), int, copy=True)
 
 
 def _rows(traj, times, states, modes, t_right, quadrants=None):
@@ -326,7 +323,7 @@ def cumulative(traj, names, tol=1e-6):
         stats["reintegrated"] += 1
     if failed:
         import warnings
-        worst = int(np.argmax(np.max(estimate / np.where(tol_abs > 0, tol_abs, np.inf))))
+        worst = int(np.argmax(estimate / np.where(tol_abs > 0, tol_abs, np.inf)))
         warnings.warn(f"the integrals of {', '.join(repr(nm) for nm in names)} could not follow the model's laws "
                       f"over {len(failed)} output interval(s) (the first [{failed[0][0]:.9g}, {failed[0][1]:.9g}] s): "
                       f"Simpson's rule on the rows stands there, estimated error of '{names[worst]}' "
@@ -334,4 +331,12 @@ def cumulative(traj, names, tol=1e-6):
                       RuntimeWarning, stacklevel=3)
         stats["failed"] = len(failed)
     stats["rhs_calls"] += counter[0]
+    bad = ~np.isfinite(inc)
+    if bad.any():
+        # a law that gives no number between the rows (the rows themselves are finite: the solvers checked them)
+        j, k = (int(x[0]) for x in np.nonzero(bad))
+        from ..errors import SimulationError
+        raise SimulationError(f"the integral of '{names[j]}' is not finite over the output interval "
+                              f"[{t[k - 1]:.9g}, {t[k]:.9g}] s: the model's laws give no number between its rows "
+                              f"there; check the parameters and signals of the component '{names[j].rpartition('.')[0]}'")
     return {nm: (np.cumsum(inc[j]), float(estimate[j])) for j, nm in enumerate(names)}, stats
