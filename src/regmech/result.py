@@ -31,6 +31,7 @@ from .modes import MODE_NAMES
 DRIVING_NAMES = {1: "flange_a drives", -1: "flange_b drives"}
 CONTACT_NAMES = {0: "open", 1: "contact +", -1: "contact -"}
 LIMIT_NAMES = {0: "within limits", 1: "at upper limit", -1: "at lower limit"}
+FLOW_NAMES = {1: "w_p + w_t > 0", -1: "w_p + w_t < 0"}
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,9 @@ class Event:
     contact state (``Device.switching_surfaces``): 0 open, +1 in contact on the positive side (the
     upper stop, ``phi_rel - phi_rel0 >= b/2``), -1 on the negative side. ``kind`` "limit": a
     controller's output (``PI``, ``PICommand``, ``Driver``) reached or left a limit: +1 at the upper
-    limit, -1 at the lower one, 0 between them. Filter on ``kind`` to compare mode sequences.
+    limit, -1 at the lower one, 0 between them. ``kind`` "flow": a torque converter's fluid path
+    (``ConverterFluid``) crossed ``w_t = -w_p``, the kink of its law in counter-rotation (+1 the side
+    ``w_p + w_t > 0``, -1 the other). Filter on ``kind`` to compare mode sequences.
     """
 
     t: float
@@ -72,6 +75,9 @@ class Event:
         if self.kind == "limit":
             return (f"t={self.t:.6g}{err}: {self.component} output: {LIMIT_NAMES.get(self.old_mode, self.old_mode)} "
                     f"-> {LIMIT_NAMES.get(self.new_mode, self.new_mode)}")
+        if self.kind == "flow":
+            return (f"t={self.t:.6g}{err}: {self.component} {FLOW_NAMES.get(self.old_mode, self.old_mode)} -> "
+                    f"{FLOW_NAMES.get(self.new_mode, self.new_mode)}")
         if self.kind == "driving side":
             return (f"t={self.t:.6g}{err}: {self.component} driving side: "
                     f"{DRIVING_NAMES.get(self.old_mode, self.old_mode)} -> {DRIVING_NAMES.get(self.new_mode, self.new_mode)}")

@@ -754,3 +754,22 @@ def test_a_stuck_gear_at_the_edge_of_its_capacity_breaks_away_when_its_load_grow
         j = np.searchsorted(res.t, 0.2)
         assert res["J1.w"][j] > 1e-3                       # the motor turns the input before the shift
         assert res["gbox1.gear2.mode"][j] != 0             # the unselected gear rolls with its idler
+
+
+def test_ida_reference_runs_of_campaign_60000_and_60009_agree_with_dop853():
+    """The session-9 campaign's first findings, as generated (spec.build()):
+
+    * seed 60000: a Position servo drives the carrier of an ideal differential between J2 = 2.014 and
+      J3 = 0.01519 kg m^2. The heavy wheel was the constraint's dummy: IDA at rtol 1e-8 took 222,043 steps (27 s)
+      and was 2.65e-4 of J2's angle range off; the light wheel is now the dummy (``_mobility_rank``).
+    * seed 60009: a torque converter's turbine pulled backwards through ``w_t = -w_p``; IDA's reference run at
+      rtol 1e-10 stalled there (step 1.3e-22 s); the kink is now a switching surface.
+    """
+    from regmech.bench.fuzz import generate_seed
+    for seed, names in ((60000, ("J2.phi", "J2.w", "J3.w")), (60009, ("J3.w", "J4.w", "M1.v"))):
+        spec = generate_seed(seed)
+        ida = spec.build().simulate(spec.t_end, dt_out=spec.dt_out, solver="ida", rtol=1e-10)
+        ref = spec.build().simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-11)
+        assert ida.stats.steps < 20_000, (seed, ida.stats.steps)
+        for n in names:
+            assert np.abs(ida[n] - ref[n]).max() < 1e-6 * np.ptp(ref[n]), (seed, n)

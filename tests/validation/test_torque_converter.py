@@ -231,3 +231,33 @@ def test_locked_lockup_runs_under_ida_at_tight_tolerance():
     assert set(ida["tc.lockup.mode"]) == {0.0}
     assert [(e.component, e.new_mode) for e in ida.events] == [(e.component, e.new_mode) for e in dop.events]
     np.testing.assert_allclose(ida["J1.w"], dop["J1.w"], atol=1e-6 * np.ptp(dop["J1.w"]))
+
+
+def test_counter_rotation_kink_is_an_event_and_ida_crosses_it_at_tight_tolerance():
+    """Fuzz seed 60009: the turbine, pulled backwards, overtakes the pump's speed (``w_t = -w_p``), where the
+    law's slope jumps. Unwatched, IDA at rtol 1e-10 took a step of 1.3e-22 s there and failed; the crossing is
+    now a switching surface: an Event of kind "flow" at the instant the speeds meet, and DOP853's answer."""
+    def build():
+        m = rm.Model("counter_rotation")
+        m.add(Inertia("Jp", J=1.148))
+        m.add(Speed("engine", w_ref=2.3886))
+        m.add(ConverterFluid("fluid", K_table=[(0.0, 4.725), (0.5, 5.197), (0.9, 7.559)],
+                             TR_table=[(0.0, 1.835), (0.85, 1.0), (1.0, 1.0)]))
+        m.add(Inertia("Jt", J=0.3, w0=-1.0))
+        m.add(Torque("pull", tau=Ramp(height=-2.0, duration=1.0)))
+        m.connect("engine.flange", "Jp.flange_a")
+        m.connect("fluid.pump", "Jp.flange_b")
+        m.connect("fluid.turbine", "Jt.flange_a")
+        m.connect("pull.flange", "Jt.flange_b")
+        return m
+    ida = build().simulate(t_end=2.0, dt_out=2e-3, solver="ida", rtol=1e-10)
+    dop = build().simulate(t_end=2.0, dt_out=2e-3, solver="scipy:DOP853", rtol=1e-11)
+    flows = [e for e in ida.events if e.kind == "flow"]
+    assert [(e.component, e.old_mode, e.new_mode) for e in flows] == [("fluid", 1, -1)]
+    # the event sits where w_t + w_p changes sign in the reference
+    s = dop["Jt.w"] + dop["Jp.w"]
+    k = int(np.nonzero(np.diff(np.sign(s)))[0][0])
+    t_cross = dop.t[k] - s[k] * (dop.t[k + 1] - dop.t[k]) / (s[k + 1] - s[k])
+    assert abs(flows[0].t - t_cross) < 1e-5
+    assert "w_p + w_t > 0 -> w_p + w_t < 0" in str(flows[0])
+    np.testing.assert_allclose(ida["Jt.w"], dop["Jt.w"], atol=1e-7 * np.ptp(dop["Jt.w"]))

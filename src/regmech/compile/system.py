@@ -88,7 +88,7 @@ class CompiledSystem:
 
     # -------------------------------------------------------------- pickling
     #: caches that hold SuperLU factorisations (not picklable) or plans derived from them; rebuilt on use
-    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form", "_native_solvers")
+    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form", "_native_solvers", "_reference_noise")
 
     def __getstate__(self):
         """Everything but the factorisation caches (``KernelGroup`` leaves out its lambdified template)."""

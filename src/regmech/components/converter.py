@@ -164,6 +164,23 @@ class ConverterFluid(Device):
         return [sympy.Piecewise((tau_p, traction), (-tau_o, True)),
                 sympy.Piecewise((-tr * tau_p, traction), (tau_o, True))]
 
+    #: a crossing of ``w_t = -w_p`` (a turbine turning backwards overtakes the pump's speed) is an ``Event`` of
+    #: kind "flow": +1 ``w_p + w_t > 0``, -1 ``w_p + w_t < 0``
+    switching_kind = "flow"
+
+    def switching_surfaces(self, e, de):
+        """The kink of the law where traction meets overrun in counter-rotation: ``w_t = -w_p`` (codes +1 on
+        the side ``w_p + w_t > 0``, -1 on the other).
+
+        There the law is continuous but its slope jumps (the torque ratio and the capacity factor change
+        branch). Unwatched, IDA at rtol 1e-10 took a step of 1.3e-22 s at that crossing and failed (fuzz seed
+        60009: a turbine pulled backwards through the pump's speed); watched, no step straddles it. The
+        other meeting of traction and overrun, ``w_t = w_p``, is smooth by construction (see the module
+        docstring) and is not watched: a locked lock-up clutch holds the speeds there to round-off, where a
+        surface would be zero and flip sign at every step."""
+        wp, wt = de
+        return [(wp + wt, 1), (-(wp + wt), -1)]
+
 
 class TorqueConverter(Subsystem):
     """Torque converter with lock-up clutch (equations in the module docstring).

@@ -568,19 +568,44 @@ def _rescaled_atol(c, Y, rtol, atol):
     return tol, factors
 
 
-def _reference_noise(c, t):
-    """The round-off [m/s^2 or rad/s^2] in the accelerations that prescribed motions impose at t: their references'
+#: points of the run at which a callable reference's finite-difference noise is sampled (``_reference_noise``)
+REFERENCE_NOISE_SAMPLES = 257
+
+
+def _reference_noise(c, t, span=None):
+    """The round-off [m/s^2 or rad/s^2] in the accelerations that prescribed motions impose: their references'
     derivatives taken by finite differences (a Python callable: ``Signal.derivative_noise``), 0 for the
-    analytic derivatives of regmech's own signals."""
+    analytic derivatives of regmech's own signals.
+
+    The noise scales with the reference's value, so it is bounded over the run's ``span`` (its largest value on
+    ``REFERENCE_NOISE_SAMPLES`` points, computed once per run), not taken at the segment's start ``t`` alone:
+    fuzz seed 60000's segment began where its sine reference was small, its dummy accelerations got a tolerance
+    below the noise the reference had 0.15 s later, and IDA halved its steps on that noise until max_steps
+    (rtol 1e-10)."""
+    sigs = [(s, 2) for _, s in getattr(c, "_pos_sig", ())] + [(s, 1) for _, s in getattr(c, "_spd_sig", ())]
+    sigs = [(s, k) for s, k in sigs if hasattr(s, "derivative_noise")]
+    if not sigs:
+        return 0.0
+    if span is None or not span[1] > span[0]:
+        times = np.array([t])
+    else:
+        times = np.linspace(span[0], span[1], REFERENCE_NOISE_SAMPLES)
+    cache = c.__dict__.setdefault("_reference_noise", {})
     noise = 0.0
-    for _, s in getattr(c, "_pos_sig", ()):
-        noise = max(noise, float(getattr(s, "derivative_noise", lambda t, k: 0.0)(t, 2)))
-    for _, s in getattr(c, "_spd_sig", ()):
-        noise = max(noise, float(getattr(s, "derivative_noise", lambda t, k: 0.0)(t, 1)))
-    return noise if np.isfinite(noise) else 0.0
+    for s, k in sigs:
+        key = (id(s), id(getattr(s, "func", None)), k, float(times[0]), float(times[-1]), len(times))
+        got = cache.get(key)
+        if got is None:
+            got = max(float(s.derivative_noise(float(ti), k)) for ti in times)
+            if len(times) > 1:
+                if len(cache) > 64:
+                    cache.clear()
+                cache[key] = got
+        noise = max(noise, got if np.isfinite(got) else 0.0)
+    return noise
 
 
-def _atol_vector(c, atol, y, yp, k_max, kind_atol=None, t=None):
+def _atol_vector(c, atol, y, yp, k_max, kind_atol=None, t=None, span=None):
     """Absolute tolerances per unknown.
 
     Positions, velocities and device states take the user's ``atol``, or
@@ -598,7 +623,7 @@ def _atol_vector(c, atol, y, yp, k_max, kind_atol=None, t=None):
     # a prescribed motion whose reference is a callable imposes accelerations known to the round-off of their
     # finite differences only (fuzz CI seed 2002: 5e-11 rad/s^2 on a speed of 18 rad/s): the dummy accelerations
     # and the forces made of them are not asked for more
-    ref = 0.0 if t is None else _reference_noise(c, t)
+    ref = 0.0 if t is None else _reference_noise(c, t, span)
     m_max = float(c.mass.max(initial=1.0))
     vec[c.ilam] = atol * f_scale + noise + ref * m_max
     a_scale = max(1.0, float(np.abs(a).max(initial=0.0)))
@@ -647,7 +672,8 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     """
     with_events = guards_for(c) is not None
     rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
-    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol, t)
+    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol, t,
+                                                       (float(grid[0]), float(grid[-1])) if len(grid) else None)
     if native:
         # one native solver serves every segment of the run: re-initialised (IDAReInit) with the segment's
         # tolerances, modes and event functions (its event bookkeeping is ours, see ``ida_native``)
