@@ -559,6 +559,35 @@ def test_speed_source_with_a_callable_reference_at_a_tight_tolerance():
                for t in ts) <= 1e-12
 
 
+@pytest.mark.parametrize("grows", [False, True])
+def test_position_source_with_a_callable_reference_at_a_tight_tolerance(grows):
+    """Campaign seeds 60012 and 60000, the sequel of CI seed 2002 for positions:
+
+    * 60012: a mass driven by a LinearPosition with a tanh reference (a callable). The speed it imposes comes
+      from a finite difference with 2.9e-12 m/s of round-off at t = 0, where IDA asked that dummy speed for
+      atol 1e-12 at rtol 1e-10: max_steps at t = 6e-4 s. The dummy speeds are now not asked for more than the
+      first derivative's round-off.
+    * 60000: the round-off grows with the reference's value; the floor was taken at a segment's start (small
+      values there) and IDA failed 0.15 s later. It is now bounded over the run (``grows``: a time event at
+      0.05 s restarts IDA where the reference is near zero, and it grows to 3.1 m afterwards).
+    """
+    from regmech.components import LinearPosition, Mass, Force
+
+    def s_ref(t):
+        return -1.501 + -1.609 * math.tanh((t - 0.6026) / 0.05873)
+    m = rm.Model("callable_position")
+    M1 = m.add(Mass("M1", m=0.1556))
+    servo = m.add(LinearPosition("servo1", s_ref=s_ref, domain="translational"))
+    m.connect(servo.flange, M1.flange_a)
+    if grows:
+        push = m.add(Force("push", f=Step(height=1.0, start_time=0.05)))
+        m.connect(push.flange, M1.flange_b)
+    res = m.simulate(0.8532, dt_out=0.002133, solver="ida", rtol=1e-10)
+    assert res.stats.steps < 10_000
+    v = -1.609 / 0.05873 / np.cosh((res.t - 0.6026) / 0.05873) ** 2
+    assert np.abs(res["M1.v"] - v).max() < 1e-7 * np.abs(v).max()
+
+
 def _model_10484():
     """Fuzz seed 10484's model, written out (a bearing with a steep table on J1, two wheels, elastic shafts)."""
     from regmech.components import BearingFriction, Force, Mass, MagicFormulaWheel, Wheel

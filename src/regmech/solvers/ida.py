@@ -572,17 +572,21 @@ def _rescaled_atol(c, Y, rtol, atol):
 REFERENCE_NOISE_SAMPLES = 257
 
 
-def _reference_noise(c, t, span=None):
-    """The round-off [m/s^2 or rad/s^2] in the accelerations that prescribed motions impose: their references'
-    derivatives taken by finite differences (a Python callable: ``Signal.derivative_noise``), 0 for the
-    analytic derivatives of regmech's own signals.
+def _reference_noise(c, t, span=None, level="a"):
+    """The round-off [m/s^2 or rad/s^2] in the accelerations that prescribed motions impose (``level`` "a"), or
+    [m/s or rad/s] in the speeds that prescribed positions impose ("v"): their references' derivatives taken by
+    finite differences (a Python callable: ``Signal.derivative_noise``), 0 for the analytic derivatives of
+    regmech's own signals.
 
     The noise scales with the reference's value, so it is bounded over the run's ``span`` (its largest value on
     ``REFERENCE_NOISE_SAMPLES`` points, computed once per run), not taken at the segment's start ``t`` alone:
     fuzz seed 60000's segment began where its sine reference was small, its dummy accelerations got a tolerance
     below the noise the reference had 0.15 s later, and IDA halved its steps on that noise until max_steps
     (rtol 1e-10)."""
-    sigs = [(s, 2) for _, s in getattr(c, "_pos_sig", ())] + [(s, 1) for _, s in getattr(c, "_spd_sig", ())]
+    if level == "v":
+        sigs = [(s, 1) for _, s in getattr(c, "_pos_sig", ())]
+    else:
+        sigs = [(s, 2) for _, s in getattr(c, "_pos_sig", ())] + [(s, 1) for _, s in getattr(c, "_spd_sig", ())]
     sigs = [(s, k) for s, k in sigs if hasattr(s, "derivative_noise")]
     if not sigs:
         return 0.0
@@ -629,6 +633,11 @@ def _atol_vector(c, atol, y, yp, k_max, kind_atol=None, t=None, span=None):
     a_scale = max(1.0, float(np.abs(a).max(initial=0.0)))
     m_min = float(c.mass[c.mass > 0].min(initial=1.0))
     vec[c.iad] = atol * a_scale + noise / m_min + ref
+    if t is not None and len(c.Dv):
+        # the speeds a callable position reference imposes carry its first derivative's noise (fuzz seed 60012:
+        # 2.9e-12 m/s on a tanh reference against atol 1e-12 at rtol 1e-10; IDA halved its steps on it until
+        # max_steps at t = 6e-4 s)
+        vec[c.iv[c.Dv]] = np.maximum(vec[c.iv[c.Dv]], _reference_noise(c, t, span, "v"))
     return vec
 
 
