@@ -37,8 +37,8 @@ FAMILY_SET = None
 
 
 def _families(name):
-    from regmech.bench.fuzz import FAMILIES_BEFORE_17
-    return {"all": None, "before17": FAMILIES_BEFORE_17}[name]
+    from regmech.bench.fuzz import FAMILIES_BEFORE_17, FAMILIES_BEFORE_S9
+    return {"all": None, "before17": FAMILIES_BEFORE_17, "before_s9": FAMILIES_BEFORE_S9}[name]
 
 
 def _child(seed, conn, run_limit, max_calls, families=None):
@@ -324,9 +324,9 @@ def main(argv=None):
     ap.add_argument("--report-only", action="store_true", help="rewrite the report from --jsonl")
     ap.add_argument("--show", type=int, help="print the reproducer script of this seed and exit")
     ap.add_argument("--verbose", action="store_true")
-    ap.add_argument("--families", choices=("all", "before17"), default="all",
-                    help="families to draw from: all, or those before issue 17 (the models of an earlier campaign's "
-                         "seeds, e.g. to --recheck them)")
+    ap.add_argument("--families", choices=("all", "before17", "before_s9"), default="all",
+                    help="families to draw from: all, or those before issue 17 / before session 9 (the models of "
+                         "an earlier campaign's seeds, e.g. to --recheck them: campaigns up to seed 69999 used before_s9)")
     args = ap.parse_args(argv)
     global FAMILY_SET
     FAMILY_SET = _families(args.families)

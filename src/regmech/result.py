@@ -31,7 +31,7 @@ from .modes import MODE_NAMES
 DRIVING_NAMES = {1: "flange_a drives", -1: "flange_b drives"}
 CONTACT_NAMES = {0: "open", 1: "contact +", -1: "contact -"}
 LIMIT_NAMES = {0: "within limits", 1: "at upper limit", -1: "at lower limit"}
-FLOW_NAMES = {1: "w_p + w_t > 0", -1: "w_p + w_t < 0"}
+FLOW_NAMES = {1: "w_p + w_t > 0", 0: "w_p + w_t < 0"}
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,7 @@ class Event:
     controller's output (``PI``, ``PICommand``, ``Driver``) reached or left a limit: +1 at the upper
     limit, -1 at the lower one, 0 between them. ``kind`` "flow": a torque converter's fluid path
     (``ConverterFluid``) crossed ``w_t = -w_p``, the kink of its law in counter-rotation (+1 the side
-    ``w_p + w_t > 0``, -1 the other). Filter on ``kind`` to compare mode sequences.
+    ``w_p + w_t > 0``, 0 the other). Filter on ``kind`` to compare mode sequences.
     """
 
     t: float

@@ -47,15 +47,18 @@ GROUPS = {
     # LinearBrake, VehicleLoad, Gearbox, TorqueConverter
     "driveline": ["end_stop", "elasto_gap", "speed_load", "stribeck_clutch", "linear_brake", "vehicle_load",
                   "gearbox", "torque_converter", "spring_damper"],
+    # session 9: rigid impacts (HardStop, LinearHardStop) and friction elements with a thermal mass and fade
+    "impacts": ["hard_stop", "thermal_friction", "spring_damper", "clutch", "ideal_gear"],
 }
-EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8, "driveline": 8}
+EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8, "driveline": 8,
+            "impacts": 6}
 #: hypothesis' examples per group when exploring (``FUZZ_HYPOTHESIS``); 0: the fixed seeds only
 EXPLORE = int(os.environ.get("FUZZ_HYPOTHESIS", "0") or 0)
 
 
 #: the first CI seed of each group (a block of its own: groups never share a model)
 SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "rough": 5000, "electric": 6000,
-             "driveline": 9000}
+             "driveline": 9000, "impacts": 9500}
 
 
 #: seeds of the CI set with findings that are still open (strict xfail: a fix turns them into failures to
@@ -119,8 +122,13 @@ def _rough(rng):
     _check(rng, "rough", references="rough", require=[rng.choice(["speed", "position"])])
 
 
+def _impacts(rng):
+    # every model has a hard stop; every other one a friction element heating with fade too
+    _check(rng, "impacts", require=["hard_stop"] + (["thermal_friction"] if rng.random() < 0.5 else []))
+
+
 CHECKS = {group: (lambda rng, group=group: _check(rng, group)) for group in GROUPS}
-CHECKS.update(electric=_electric, rough=_rough)
+CHECKS.update(electric=_electric, rough=_rough, impacts=_impacts)
 
 
 @pytest.mark.parametrize("group, seed", cases())

@@ -120,10 +120,15 @@ FAMILIES = {
     # drivetrain components of issue 17 (stops, loads, friction laws, transmissions)
     "end_stop": 2, "elasto_gap": 1, "speed_load": 2, "stribeck_clutch": 2, "linear_brake": 1, "vehicle_load": 1,
     "gearbox": 1, "torque_converter": 1,
+    # session 9: rigid impacts and friction heating inside the DAE
+    "hard_stop": 2, "thermal_friction": 2,
 }
 #: the families before issue 17, in their order: ``generate(families=FAMILIES_BEFORE_17)`` draws the same
 #: models for the same seeds as before they were added (regression tests pinned to a seed use it)
 FAMILIES_BEFORE_17 = tuple(FAMILIES)[:26]
+#: the families before session 9 added ``hard_stop`` and ``thermal_friction``: the models of campaign seeds
+#: 60000.. (``benchmarks/results/fuzz/verdicts.jsonl``) as they were drawn
+FAMILIES_BEFORE_S9 = tuple(f for f in FAMILIES if f not in ("hard_stop", "thermal_friction"))
 #: signal types drawn for sources and normal forces ("callable": a lambda of t)
 SIGNALS = ("Constant", "Step", "Ramp", "Sine", "Table", "Pulse", "callable")
 #: families that need a translational mass to attach to
@@ -152,7 +157,10 @@ class ModelSpec:
     def source(self) -> str:
         head = ["import math", "import regmech as rm", "from regmech.components import *",
                 "from regmech.components.laws import Stribeck",
-                "from regmech.signals import *", "", f"m = rm.Model({self.name!r})"]
+                "from regmech.signals import *"]
+        if any("ThermalMass(" in line for line in self.lines):
+            head.append("from regmech.components.heat import ThermalMass")
+        head += ["", f"m = rm.Model({self.name!r})"]
         return "\n".join(head + list(self.lines)) + "\n"
 
     def script(self, solver: str = "ida", **options) -> str:
@@ -192,6 +200,7 @@ class _Gen:
         self.parent: dict[int, int] = {}
         self.driven: set[int] = set()              # rigid groups with a prescribed-motion source
         self.high_start: dict[int, _Body] = {}      # group -> body that must start fast (one-way clutch side b)
+        self.at_zero: list[_Body] = []              # bodies whose groups start at position 0 (inside a hard stop)
         self.count: dict[str, int] = {}
         self.used: list[str] = []
         self.grounds: dict[str, str] = {}
@@ -595,6 +604,52 @@ class _Gen:
         self.connect(f"{var}.flange_a", ends[0])
         self.connect(f"{var}.flange_b", ends[1])
 
+    def hard_stop(self):
+        """A rigid stop (impacts with restitution ``e``) of a mass against the ground or another mass; the limits
+        hold 0, and the groups of both sides start at position 0 (a start outside the limits is refused)."""
+        domain = "translational" if self.chance(0.5) else "rotational"
+        a = self.anchor(domain)
+        others = [b for b in self.bodies if b.domain == domain and self.find(b.group) != self.find(a.group)]
+        b = self.pick(others) if others and self.chance(0.4) else None
+        lo = -self.dec(-3, 0)
+        e = 0.0 if self.chance(0.25) else self.u(0.2, 0.95)
+        cls = "LinearHardStop" if domain == "translational" else "HardStop"
+        var = self.add("hstop", cls, lower=_fmt(lo), upper=_fmt(self.dec(-3, 0.3)), e=_fmt(e))
+        self.connect(f"{var}.flange", self.flange(a))
+        self.at_zero.append(a)
+        if b is not None:
+            self.connect(f"{var}.support", self.flange(b))
+            self.at_zero.append(b)
+
+    def thermal_friction(self):
+        """A clutch or brake with a thermal mass inside the DAE and fade: its capacity falls as it heats. The
+        heat capacity is drawn so that the run's slip heat raises the temperature by ~0.1-300 K, and the fade
+        acts over 1-30 K above the start."""
+        a = self.anchor("rotational")
+        mu = self.mu_kwargs()
+        cgeo = self.dec(-1.5, 0)
+        fn_max = self.tau_scale * self.dec(-1, 0.7) / (0.5 * cgeo)
+        energy = self.tau_scale * self.dec(0, 1.5) * self.t_end          # a slip heat scale [J]
+        C = energy / self.dec(2, 4.5)
+        G = 0.0 if self.chance(0.3) else C * self.dec(-2, 0)
+        dT = self.dec(0, 1.5)
+        fade = f"[(293.15, 1.0), ({_fmt(293.15 + dT)}, {_fmt(self.u(0.4, 0.95))})]"
+        thermal = f"ThermalMass(C={_fmt(C)}, G={_fmt(G)}, fade={fade})"
+        kw = dict(mu, peak=_fmt(self.u(1.0, 1.6)), cgeo=_fmt(cgeo), fn_max=_fmt(fn_max),
+                  f_normalized=self.normalized(), thermal=thermal)
+        if self.chance(0.5):
+            var = self.add("brake", "Brake", **kw)
+            self.connect(f"{var}.flange", self.flange(a))
+            return
+        var = self.add("clutch", "Clutch", **kw)
+        others = [b for b in self.bodies if b.domain == "rotational" and self.find(b.group) != self.find(a.group)]
+        b = self.pick(others) if others and self.chance(0.3) else self.new_mass("rotational")
+        ends = [self.flange(a), self.flange(b)]
+        if self.chance(0.5):
+            ends.reverse()
+        self.connect(f"{var}.flange_a", ends[0])
+        self.connect(f"{var}.flange_b", ends[1])
+
     def speed_load(self):
         """One of the speed-dependent loads (linear, quadratic, sign, inverse) on a mass, opposing motion."""
         kind = self.pick(("Linear", "Quadratic", "Sign", "Inverse"))
@@ -790,6 +845,10 @@ class _Gen:
             self.vehicle_load()
         elif family in ("gearbox", "torque_converter"):
             self.transmission(family)
+        elif family == "hard_stop":
+            self.hard_stop()
+        elif family == "thermal_friction":
+            self.thermal_friction()
         else:
             self.source(family)
 
@@ -798,6 +857,7 @@ class _Gen:
         groups: dict[int, list[_Body]] = {}
         for b in self.bodies:
             groups.setdefault(self.find(b.group), []).append(b)
+        inside_stops = {self.find(b.group) for b in self.at_zero}
         for g, members in groups.items():
             if g in self.driven:
                 continue
@@ -812,6 +872,8 @@ class _Gen:
             else:
                 continue
             phi0 = self.pick((None, self.pick((1, -1)) * self.dec(-3, 0)))
+            if g in inside_stops:
+                phi0 = None
             kw = self.comps[b.var]["kw"]
             if b.start == "inertia":
                 kw["w0"] = _fmt(w0)
@@ -1611,6 +1673,6 @@ def evaluate(spec: ModelSpec, runs=RUNS, max_calls=DEFAULT_MAX_CALLS, time_limit
     return v
 
 
-__all__ = ["FAMILIES", "SIGNALS", "ModelSpec", "generate", "generate_seed", "evaluate", "Verdict", "Finding",
+__all__ = ["FAMILIES", "FAMILIES_BEFORE_S9", "SIGNALS", "ModelSpec", "generate", "generate_seed", "evaluate", "Verdict", "Finding",
            "RunOutcome", "RUNS", "claimed_error", "energy_checks", "finite_check", "agreement", "integrate",
            "contract_error", "default_accuracy", "conditioning", "perturb_masses"]
