@@ -108,6 +108,22 @@ class _KernelPrinter(NumPyPrinter):
         return super()._print_Pow(expr, rational=rational)
 
 
+    def _print_Piecewise(self, expr):
+        """Nested ``numpy.where`` instead of NumPyPrinter's ``numpy.select``: the same first-true-branch rule, but
+        ``select`` broadcasts its lists on every call, 50 us on the one-element arrays of a class with one
+        instance; it was 46 % of a run of campaign seed 60016 (a lossy gear, an end stop, a sign load: 156,897
+        selects in 31,318 residual calls). ``where`` costs about 2 us there."""
+        where = self._module_format("numpy.where")
+        pieces = list(expr.args)
+        if pieces and pieces[-1].cond == sympy.true:
+            out = self._print(pieces.pop().expr)
+        else:
+            out = self._module_format("numpy.nan")
+        for piece in reversed(pieces):
+            out = f"{where}({self._print(piece.cond)}, {self._print(piece.expr)}, {out})"
+        return out
+
+
 def _lambdify(args, exprs):
     return sympy.lambdify(args, exprs, modules="numpy", printer=_KernelPrinter, cse=True)
 

@@ -33,6 +33,8 @@ and the holding torques are the hybrid layer's (``regmech.hybrid``: its
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 
 from ..component import Device, Param, read_only
@@ -504,8 +506,33 @@ class LossyGear(FrictionDevice):
         return ["rigid", "friction"]
 
     def _interp(self, w_abs):
-        tab = self._table
-        eta1, eta2, bf1, bf2 = (float(np.interp(w_abs, tab[:, 0], tab[:, k])) for k in range(1, 5))
+        """The table's row at ``|w|`` (linear between its speeds, constant beyond them) as ``(eta1, eta2, bf1,
+        bf2, bf_a)``. Plain floats and a bisection, and the last answer kept: the mode logic and the friction rows
+        ask for the same speed several times per residual call, and four ``np.interp`` calls a time were a
+        quarter of a run of campaign seed 60016 once its kernels stopped dominating."""
+        last = self.__dict__.get("_interp_last")
+        if last is not None and last[0] == w_abs and last[1] is self._table:
+            return last[2]
+        xs = self.__dict__.get("_interp_xs")
+        if xs is None or self.__dict__.get("_interp_of") is not self._table:
+            xs = [float(x) for x in self._table[:, 0]]
+            self._interp_rows = [tuple(float(v) for v in row[1:5]) for row in self._table]
+            self._interp_xs, self._interp_of = xs, self._table
+        rows = self._interp_rows
+        i = bisect.bisect_right(xs, w_abs)
+        if i == 0:
+            eta1, eta2, bf1, bf2 = rows[0]
+        elif i == len(xs):
+            eta1, eta2, bf1, bf2 = rows[-1]
+        else:
+            f = (w_abs - xs[i - 1]) / (xs[i] - xs[i - 1])
+            eta1, eta2, bf1, bf2 = (lo + f * (hi - lo) for lo, hi in zip(rows[i - 1], rows[i]))
+        out = self._coefficients(eta1, eta2, bf1, bf2)
+        self._interp_last = (w_abs, self._table, out)
+        return out
+
+    @staticmethod
+    def _coefficients(eta1, eta2, bf1, bf2):
         bf1, bf2 = abs(bf1), abs(bf2)
         if abs(eta1 - 1.0) < 1e-15 and abs(eta2 - 1.0) < 1e-15:
             bf_a = bf1 / 2.0        # the split between the sides is arbitrary (MSL does the same)
