@@ -178,6 +178,11 @@ class SpeedAbove(sympy.Function):
         w, w_base = (printer._print(a) for a in self.args)
         return f"numpy.maximum(numpy.abs({w}), {w_base})"
 
+    def _pythoncode(self, printer):
+        # the Python-float kernels of a class with one instance (``compile.kernels.Template.scalar``)
+        w, w_base = (printer._print(a) for a in self.args)
+        return f"max(abs({w}), {w_base})"
+
 
 def envelope(w, tau_max: float, p_max: float):
     """Available torque magnitude at speed ``w`` [N m]: ``tau_max`` up to the base speed
