@@ -34,6 +34,11 @@ from regmech.bench.fuzz import RUNS, evaluate, generate  # noqa: E402
 CI_RUNS = tuple(r for r in RUNS if r[0] != "dop853_ref")
 #: equation evaluations per run (a run beyond it is a finding of kind "budget")
 MAX_CALLS = 300_000
+#: the budget of a seed whose open finding is its budget (``OPEN``): it shows the defect a third of the way in
+#: (4004's IDA needs 192,915 evaluations to 0.3 s, its Ramp variant 1,611 for the whole run) and keeps the
+#: CI subset nearer its 3 minutes (4004 spent 58-67 s reaching 300,000 on a loaded machine, 41 s now)
+MAX_CALLS_OPEN = 100_000
+_budget = [MAX_CALLS]
 SOURCES = ["torque", "force", "speed", "position"]
 GROUPS = {
     "links": ["spring", "damper", "spring_damper", "shaft_rigid", "shaft_elastic", "backlash", "elasto_backlash"],
@@ -64,7 +69,7 @@ SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "r
 #: seeds of the CI set with findings that are still open (strict xfail: a fix turns them into failures to
 #: unmark); each is listed in benchmarks/results/fuzz.md's open causes
 OPEN = {
-    4004: "open: IDA needs more than 300,000 evaluations (the CI work budget) on two wheels with road contacts, a "
+    4004: "open: IDA needs more than its CI work budget (MAX_CALLS_OPEN) on two wheels with road contacts, a "
           "position servo and a mu-table clutch: from t = 0.21 s, with no event, it fails its tests at "
           "almost every step (rtol 1e-8 to 0.3 s: 192,915 evaluations, 122,079 Jacobians). Session 7: over the "
           "whole run max_order=3 (362,268 evaluations), the sparse solver (367,844), rtol 1e-6 (115,223) and "
@@ -87,7 +92,7 @@ def cases():
 def _check(rng, group, references="smooth", require=(), sources=SOURCES):
     spec = generate(rng, families=GROUPS[group] + sources, n_steps=rng.randint(1, 4), name=f"fuzz_{group}",
                     references=references, require=require)
-    verdict = evaluate(spec, runs=CI_RUNS, max_calls=MAX_CALLS)
+    verdict = evaluate(spec, runs=CI_RUNS, max_calls=_budget[0])
     if verdict.status == "finding":
         lines = [f"{f.kind} [{f.run}] {f.detail}" for f in verdict.findings]
         pytest.fail("findings on a generated model:\n  " + "\n  ".join(lines) + "\n\nreproducer:\n"
@@ -134,7 +139,11 @@ CHECKS.update(electric=_electric, rough=_rough, impacts=_impacts)
 @pytest.mark.parametrize("group, seed", cases())
 def test_random_drivetrains(group, seed):
     """The property on the CI model of ``seed`` in ``group`` (``CHECKS``)."""
-    CHECKS[group](random.Random(seed))
+    _budget[0] = MAX_CALLS_OPEN if seed in OPEN else MAX_CALLS
+    try:
+        CHECKS[group](random.Random(seed))
+    finally:
+        _budget[0] = MAX_CALLS
 
 
 @_explore
