@@ -292,6 +292,13 @@ def test_bad_parameters_and_starts_are_refused_by_name():
         for solver in ("ida", "scipy:DOP853"):
             with pytest.raises(SimulationError, match=f"HardStop 'stop'.*{what}"):
                 m.simulate(t_end=0.1, solver=solver)
+    # a translational stop names its coordinate and unit (the fuzz family hard_stop: "phi_rel" on a mass)
+    m = rm.Model("start_linear")
+    body = m.add(Mass("M", m=1.0, s0=0.7))
+    stop = m.add(LinearHardStop("stop", lower=-1.0, upper=0.5, e=0.5))
+    m.connect(body.flange_b, stop.flange)
+    with pytest.raises(SimulationError, match=r"LinearHardStop 'stop' starts at s_rel = 0\.7 m, outside its limits"):
+        m.simulate(t_end=0.1, solver="ida")
 
 
 @pytest.mark.parametrize("solver", ["expm", "convolution", "rk4", "euler", "abm"])

@@ -82,9 +82,11 @@ class Impacts:
         if initial:
             self._reset_impacts()
             if rel > dev.upper + tol_x or rel < dev.lower - tol_x:
+                coord, unit = ("s_rel", "m") if getattr(dev, "domain", None) == "translational" else ("phi_rel", "rad")
                 raise SimulationError(
-                    f"{type(dev).__name__} '{dev.name}' starts at phi_rel = {rel:.9g}, outside its limits "
-                    f"[{dev.lower:g}, {dev.upper:g}]; give start positions inside them")
+                    f"{type(dev).__name__} '{dev.name}' starts at {coord} = {rel:.9g} {unit}, outside its limits "
+                    f"[{dev.lower:g}, {dev.upper:g}] {unit}; give start positions inside them (the start values of "
+                    f"the masses on its flanges, or the reference of a motion source driving them)")
             side = 1 if rel >= dev.upper - tol_x else -1 if rel <= dev.lower + tol_x else 0
             if side == 0:
                 return FREE, v

@@ -56,6 +56,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import RegmechError
+
 
 #: right-hand side evaluations allowed to each implicit method of the re-integration of one output interval
 MAX_RHS_CALLS = 20_000
@@ -181,8 +183,12 @@ def _reintegrate(traj, names, k, u0, modes, tol_state, scale_u, quadrant=None):
                     return problem.jacobian(t, u)
             opts["jac"] = jac
         try:
-            sol = solve_ivp(f, (t0, t1), u0, method=method, rtol=rtol, atol=atol, dense_output=True, **opts)
-        except _Budget:
+            with np.errstate(all="ignore"):
+                sol = solve_ivp(f, (t0, t1), u0, method=method, rtol=rtol, atol=atol, dense_output=True, **opts)
+        except (_Budget, ValueError, ArithmeticError, np.linalg.LinAlgError, RegmechError):
+            # the method failed in this interval (campaign seed 60110: Radau's motion, frozen in the interval's
+            # modes, ran to inf and scipy's LU refused its matrix with a ValueError that reached the user's
+            # ``res['bearing1.heat']``): the next method tries, and Simpson's value stands if none gets through
             sol = None
         spent += counter[0]
         if sol is not None and sol.success:
