@@ -480,7 +480,8 @@ class _Gen:
             rows.append(f"[{_fmt(w)}, {_fmt(e1)}, {_fmt(e2)}, {_fmt(b1)}, {_fmt(b2)}]")
         return "[" + ", ".join(rows) + "]"
 
-    def friction(self, family):
+    def friction(self, family, thermal=None):
+        """A friction element of ``family``; ``thermal``: the source of a ``ThermalMass`` for a clutch or brake."""
         if family == "friction_contact":
             a = self.anchor("translational")
             fn = self.signal(0.0, 1.0 * self.f_scale)
@@ -506,6 +507,8 @@ class _Gen:
         fn_max = self.tau_scale * self.dec(-1, 0.7) / (0.5 * cgeo)
         kw = dict(mu, peak=_fmt(self.u(1.0, 1.6)), cgeo=_fmt(cgeo), fn_max=_fmt(fn_max),
                   f_normalized=self.normalized())
+        if thermal is not None:
+            kw["thermal"] = thermal
         if family == "brake":
             var = self.add("brake", "Brake", **kw)
             self.connect(f"{var}.flange", self.flange(a))
@@ -625,30 +628,11 @@ class _Gen:
         """A clutch or brake with a thermal mass inside the DAE and fade: its capacity falls as it heats. The
         heat capacity is drawn so that the run's slip heat raises the temperature by ~0.1-300 K, and the fade
         acts over 1-30 K above the start."""
-        a = self.anchor("rotational")
-        mu = self.mu_kwargs()
-        cgeo = self.dec(-1.5, 0)
-        fn_max = self.tau_scale * self.dec(-1, 0.7) / (0.5 * cgeo)
         energy = self.tau_scale * self.dec(0, 1.5) * self.t_end          # a slip heat scale [J]
         C = energy / self.dec(2, 4.5)
         G = 0.0 if self.chance(0.3) else C * self.dec(-2, 0)
-        dT = self.dec(0, 1.5)
-        fade = f"[(293.15, 1.0), ({_fmt(293.15 + dT)}, {_fmt(self.u(0.4, 0.95))})]"
-        thermal = f"ThermalMass(C={_fmt(C)}, G={_fmt(G)}, fade={fade})"
-        kw = dict(mu, peak=_fmt(self.u(1.0, 1.6)), cgeo=_fmt(cgeo), fn_max=_fmt(fn_max),
-                  f_normalized=self.normalized(), thermal=thermal)
-        if self.chance(0.5):
-            var = self.add("brake", "Brake", **kw)
-            self.connect(f"{var}.flange", self.flange(a))
-            return
-        var = self.add("clutch", "Clutch", **kw)
-        others = [b for b in self.bodies if b.domain == "rotational" and self.find(b.group) != self.find(a.group)]
-        b = self.pick(others) if others and self.chance(0.3) else self.new_mass("rotational")
-        ends = [self.flange(a), self.flange(b)]
-        if self.chance(0.5):
-            ends.reverse()
-        self.connect(f"{var}.flange_a", ends[0])
-        self.connect(f"{var}.flange_b", ends[1])
+        fade = f"[(293.15, 1.0), ({_fmt(293.15 + self.dec(0, 1.5))}, {_fmt(self.u(0.4, 0.95))})]"
+        self.friction(self.pick(("brake", "clutch")), thermal=f"ThermalMass(C={_fmt(C)}, G={_fmt(G)}, fade={fade})")
 
     def speed_load(self):
         """One of the speed-dependent loads (linear, quadratic, sign, inverse) on a mass, opposing motion."""

@@ -121,9 +121,8 @@ class ConverterFluid(Device):
         if sub is None:
             c = np.vstack([np.column_stack([k[:, 0], 1.0 / k[:, 1] ** 2]), [[1.0, 0.0]]]) \
                 if np.all(k[:, 1] > 0) and k[-1, 0] < 1.0 else None
-            # counter-rotation (turbine backwards, nu < 0): TR goes linearly from TR(0) to 1 at nu = -1, where
-            # traction meets overrun again (|w_t| = |w_p|), so the turbine torque is continuous there too
-            trp = np.vstack([[[-1.0, 1.0]], tr]) if len(tr) and tr[0, 0] == 0.0 else tr.copy()
+            # the table itself: counter-rotation (nu < 0) has its own line, ``_deep_stall_tr``
+            trp = tr.copy()
             sub = type(public.__name__, (public,), {
                 "_c_points": c, "_tr_points": trp, "_public": public, "__module__": public.__module__,
                 "__qualname__": public.__qualname__, "__doc__": public.__doc__})
@@ -177,7 +176,7 @@ class ConverterFluid(Device):
         60009), and IDA, whose error test sees a jump of an algebraic force at every step size, took 50,000 steps
         at rtol 1e-10 without passing it. Used where ``nu < 0`` and ``|w_t| <= |w_p|``, so ``w_p^2 > w_eps^2``
         there; the floor of the denominator only keeps the unused branch finite."""
-        tr0 = float(self._tr_points[self._tr_points[:, 0] == 0.0][0, 1])
+        tr0 = float(self._tr_points[0, 1])          # TR(0): the table starts at nu = 0 (``validate``)
         den = wp ** 2 - eps2
         floor = 1e-12 * eps2
         den = (den + floor + sympy.Abs(den - floor)) / 2          # max(den, floor) as arithmetic

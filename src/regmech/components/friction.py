@@ -491,6 +491,10 @@ class LossyGear(FrictionDevice):
         tab = read_only(tab)                 # the validated table, not the caller's (editable) array
         self._values["loss_table"] = tab
         self._table = tab
+        # the lookup's plain floats (``_interp``), made with the table: a new table gets new ones
+        self._interp_xs = [float(x) for x in tab[:, 0]]
+        self._interp_rows = [tuple(float(v) for v in row[1:5]) for row in tab]
+        self._interp_last = None
         self.ideal = bool(np.allclose(tab, [[0.0, 1.0, 1.0, 0.0, 0.0]], rtol=0, atol=1e-15) and len(tab) == 1)
         self._zero = self._interp(0.0)
 
@@ -510,15 +514,10 @@ class LossyGear(FrictionDevice):
         bf2, bf_a)``. Plain floats and a bisection, and the last answer kept: the mode logic and the friction rows
         ask for the same speed several times per residual call, and four ``np.interp`` calls a time were a
         quarter of a run of campaign seed 60016 once its kernels stopped dominating."""
-        last = self.__dict__.get("_interp_last")
-        if last is not None and last[0] == w_abs and last[1] is self._table:
-            return last[2]
-        xs = self.__dict__.get("_interp_xs")
-        if xs is None or self.__dict__.get("_interp_of") is not self._table:
-            xs = [float(x) for x in self._table[:, 0]]
-            self._interp_rows = [tuple(float(v) for v in row[1:5]) for row in self._table]
-            self._interp_xs, self._interp_of = xs, self._table
-        rows = self._interp_rows
+        last = self._interp_last
+        if last is not None and last[0] == w_abs:
+            return last[1]
+        xs, rows = self._interp_xs, self._interp_rows
         i = bisect.bisect_right(xs, w_abs)
         if i == 0:
             eta1, eta2, bf1, bf2 = rows[0]
@@ -528,7 +527,7 @@ class LossyGear(FrictionDevice):
             f = (w_abs - xs[i - 1]) / (xs[i] - xs[i - 1])
             eta1, eta2, bf1, bf2 = (lo + f * (hi - lo) for lo, hi in zip(rows[i - 1], rows[i]))
         out = self._coefficients(eta1, eta2, bf1, bf2)
-        self._interp_last = (w_abs, self._table, out)
+        self._interp_last = (w_abs, out)
         return out
 
     @staticmethod

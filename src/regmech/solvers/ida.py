@@ -386,6 +386,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     c = model.compile()
     compile_time = time.perf_counter() - tc
     t0 = time.perf_counter()
+    c.__dict__.pop("_reference_noise", None)        # sampled again for this run's references (``_reference_noise``)
     atol = rtol * 1e-2 if atol is None else atol
     if linsolver is None:
         linsolver, order = choose_linsolver(c, dense_max)
@@ -582,7 +583,8 @@ def _reference_noise(c, t, span=None, level="a"):
     regmech's own signals.
 
     The noise scales with the reference's value, so it is bounded over the run's ``span`` (its largest value on
-    ``REFERENCE_NOISE_SAMPLES`` points, computed once per run), not taken at the segment's start ``t`` alone:
+    ``REFERENCE_NOISE_SAMPLES`` points, kept for the run: ``_run_ida`` clears it at the start of each run, so a
+    reference changed between runs is sampled again), not taken at the segment's start ``t`` alone:
     fuzz seed 60000's segment began where its sine reference was small, its dummy accelerations got a tolerance
     below the noise the reference had 0.15 s later, and IDA halved its steps on that noise until max_steps
     (rtol 1e-10)."""
@@ -598,17 +600,15 @@ def _reference_noise(c, t, span=None, level="a"):
     else:
         times = np.linspace(span[0], span[1], REFERENCE_NOISE_SAMPLES)
     cache = c.__dict__.setdefault("_reference_noise", {})
+    key = (level, None if len(times) == 1 else (float(times[0]), float(times[-1])))
+    if key[1] is not None and key in cache:
+        return cache[key]
     noise = 0.0
     for s, k in sigs:
-        key = (id(s), id(getattr(s, "func", None)), k, float(times[0]), float(times[-1]), len(times))
-        got = cache.get(key)
-        if got is None:
-            got = max(float(s.derivative_noise(float(ti), k)) for ti in times)
-            if len(times) > 1:
-                if len(cache) > 64:
-                    cache.clear()
-                cache[key] = got
+        got = max(float(s.derivative_noise(float(ti), k)) for ti in times)
         noise = max(noise, got if np.isfinite(got) else 0.0)
+    if key[1] is not None:
+        cache[key] = noise
     return noise
 
 
