@@ -34,9 +34,8 @@ from regmech.bench.fuzz import RUNS, evaluate, generate  # noqa: E402
 CI_RUNS = tuple(r for r in RUNS if r[0] != "dop853_ref")
 #: equation evaluations per run (a run beyond it is a finding of kind "budget")
 MAX_CALLS = 300_000
-#: the budget of a seed whose open finding is its budget (``OPEN``): it shows the defect a third of the way in
-#: (4004's IDA needs 192,915 evaluations to 0.3 s, its Ramp variant 1,611 for the whole run) and keeps the
-#: CI subset nearer its 3 minutes (4004 spent 58-67 s reaching 300,000 on a loaded machine, 41 s now)
+#: the budget of a seed whose open finding is its budget (``OPEN``): a third of ``MAX_CALLS`` shows such a
+#: defect and keeps the CI subset nearer its 3 minutes (seed 4004 spent 58-67 s reaching 300,000)
 MAX_CALLS_OPEN = 100_000
 _budget = [MAX_CALLS]
 SOURCES = ["torque", "force", "speed", "position"]
@@ -68,15 +67,10 @@ SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "r
 
 #: seeds of the CI set with findings that are still open (strict xfail: a fix turns them into failures to
 #: unmark); each is listed in benchmarks/results/fuzz.md's open causes
-OPEN = {
-    4004: "open: IDA needs more than its CI work budget (MAX_CALLS_OPEN) on two wheels with road contacts, a "
-          "position servo and a mu-table clutch: from t = 0.21 s, with no event, it fails its tests at "
-          "almost every step (rtol 1e-8 to 0.3 s: 192,915 evaluations, 122,079 Jacobians). Session 7: over the "
-          "whole run max_order=3 (362,268 evaluations), the sparse solver (367,844), rtol 1e-6 (115,223) and "
-          "row-equilibrated Newton matrices (condition 1e11 -> 1.6e6; 505,635) do not help; with the servo's "
-          "Sine reference replaced by a Ramp IDA takes 1,611 evaluations, DOP853 648 steps on the original: "
-          "the cause lies in IDA's handling of the prescribed motion, not found; see benchmarks/results/fuzz.md",
-}
+OPEN: dict[int, str] = {}
+# 4004 (open since session 6: IDA needed 362,268 evaluations on two wheels of one hub with a position servo and a
+# sliding clutch) was fixed in session 10 by the dummy's reflected inertia and the algebraic unknowns' tolerance
+# (``structure.system._reflected_mass``, ``solvers.ida._atol_vector``): 4,152 evaluations
 
 
 def cases():

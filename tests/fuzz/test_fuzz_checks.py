@@ -61,6 +61,18 @@ def test_integrate_estimates_its_own_error():
     assert cum2[-1] == pytest.approx(4.0) and err2 == pytest.approx(0.0, abs=1e-15)
 
 
+def test_integrate_bounds_a_piece_of_one_interval():
+    # fuzz seed 60173: a clutch stopped an inertia inside the first output interval, so the piece before the
+    # lock-up event had two rows and no Richardson estimate; the trapezoid's error there was then claimed 0
+    t = np.array([0.0, 1e-3, 1e-3, 2e-3, 3e-3])
+    p = lambda tt: 290.0 * (1.0 - tt / 1e-3) ** 2          # a power falling to 0 at the lock-up, convex
+    y = np.array([p(0.0), 0.0, 0.0, 0.0, 0.0])
+    cum, err = integrate(t, y)
+    exact = 290.0 * 1e-3 / 3
+    assert abs(cum[1] - exact) > 0.04                       # the trapezoid alone is far off ...
+    assert err >= abs(cum[1] - exact)                       # ... and its estimate says so
+
+
 def _damped_model():
     m = rm.Model("damped")
     drive = m.add(rm.components.Torque("drive", tau=rm.signals.Sine(amplitude=3.0, freq_hz=2.0)))

@@ -59,3 +59,42 @@ def test_ida_needs_no_more_steps_for_a_light_wheel_than_for_a_heavy_one():
     heavy = _model(j3=1.0).simulate(0.47, dt_out=0.0022, solver="ida", rtol=1e-6)
     assert light.stats.steps < 3 * heavy.stats.steps
     assert _speed_error(heavy, j3=1.0) < 1e-4
+
+
+def test_reflected_mass_of_rigid_groups():
+    """``_reflected_mass``: a coordinate's inertia is its rigid group's, reflected through the rows' ratios; rows
+    of three coordinates join nothing."""
+    import scipy.sparse as sp
+    from regmech.structure.system import _reflected_mass
+    # x0 - x1 = 0 (a shaft), x1 - 3 x2 = 0 (a gear: x2 turns a third of x1), x3 + x4 - 2 x5 = 0 (a differential)
+    G = sp.csr_matrix(np.array([[1.0, -1.0, 0, 0, 0, 0], [0, 1.0, -3.0, 0, 0, 0], [0, 0, 0, 1.0, 1.0, -2.0]]))
+    mass = np.array([1.0, 0.5, 9.0, 2.0, 3.0, 4.0])
+    got = _reflected_mass(G, mass)
+    # per unit of x0: x1 moves 1, x2 moves 1/3 -> M0 = 1 + 0.5 + 9/9 = 2.5; M2 = 2.5 * 9
+    assert got[:3] == pytest.approx([2.5, 2.5, 22.5])
+    assert got[3:] == pytest.approx(mass[3:])
+
+
+def test_light_wheel_on_a_heavy_hub_is_not_the_rolling_dummy():
+    """Fuzz CI seed 4004: two wheels on one hub (J1 between them on rigid shafts), their axles moved by a
+    LinearPosition. Each rolling constraint needs a dummy, the tread or the hub. By its own inertia the light
+    wheel (0.040 kg m^2) was the best dummy and a tread stayed a state, so the whole hub followed that tread's
+    state over the radius 0.134 m; the hub's inertia is 2.22 kg m^2, and both treads are now the dummies."""
+    from regmech.components import Shaft, Wheel
+    from regmech.components.sources import LinearPosition
+    m = rm.Model("hub")
+    m.add(Inertia("J1", J=0.6361))
+    m.add(Wheel("wheel1", radius=0.4102, J=1.547, m_axle=20.08, fn=1387.0))
+    m.add(Wheel("wheel2", radius=0.1344, J=0.04014, m_axle=1.002, fn=1135.0))
+    m.add(Shaft("shaft1", stiffness=None))
+    m.add(Shaft("shaft2", stiffness=None))
+    m.add(LinearPosition("servo", s_ref=Sine(1.0, 1.0), domain="translational"))
+    m.connect("shaft1.flange_a", "J1.flange_b")
+    m.connect("shaft1.flange_b", "wheel1.hub")
+    m.connect("shaft2.flange_a", "J1.flange_a")
+    m.connect("shaft2.flange_b", "wheel2.hub")
+    m.connect("wheel1.axle", "wheel2.axle")
+    m.connect("servo.flange", "wheel1.axle")
+    st = m.compile().structure
+    dummies = {st.coord_names[k] for k in st.dummy_v}
+    assert {"wheel1.tread", "wheel2.tread"} <= dummies
