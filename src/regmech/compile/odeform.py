@@ -137,9 +137,12 @@ class OdeForm:
                 self.on_u = True
             self.T_mv = MatVec(self.T)
             self.t0 = plan.t0
+            self.t0_zero = not np.any(plan.t0)         # adding zeros changes no value: skipped
             self.ScT = fast_operator(c.ScT) if self.n_c else None
             self.ScT_mv = MatVec(self.ScT) if self.n_c else None
             self.mass = c.mass
+            # -f / m and f / (-m) are the same number (IEEE division rounds the magnitude, the sign is exact)
+            self.neg_mass = -np.asarray(c.mass, float)
             self.V = plan.V
             self.v_rows = self.v_cols = None
             if sp.issparse(plan.V):
@@ -165,7 +168,8 @@ class OdeForm:
             yb[c._sv] = u[n:2 * n]
             yb[c._sz] = u[2 * n:]
             out = self.T_mv(yb)
-        out += self.t0
+        if not self.t0_zero:
+            out += self.t0
         if self.V is not None:
             left = t >= c._t_right
             buf = self.buf
@@ -180,9 +184,7 @@ class OdeForm:
         g = np.empty(self.size)
         g[:n] = u[n:2 * n]
         if n_c:
-            f = self.ScT_mv(out[:n_c])
-            np.negative(f, out=f)
-            np.divide(f, self.mass, out=g[n:2 * n])
+            np.divide(self.ScT_mv(out[:n_c]), self.neg_mass, out=g[n:2 * n])
         else:
             g[n:2 * n] = 0.0
         g[2 * n:] = out[n_c:]

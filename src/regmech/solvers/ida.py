@@ -26,7 +26,9 @@ states stayed below a thirtieth of that is made again with their absolute
 tolerances scaled to their magnitude (``_rescaled_atol``; the stats count
 both runs). An array ``atol`` is used as given. The algebraic unknowns
 (forces, dummy accelerations) get ``_atol_vector``'s scaling at every
-segment start.
+segment start: ``max(atol, rtol)`` times the largest force present (a
+dummy's acceleration: that force over its mass), since the BDF formulas
+give them the error of a derivative, an order below the states'.
 """
 
 from __future__ import annotations

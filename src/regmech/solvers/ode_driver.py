@@ -68,9 +68,15 @@ class OdeProblem:
         self.size = compiled.ode_size()
         self.nfev = 0       # right-hand side evaluations (including finite-difference ones)
         self.njev = 0       # Jacobians built by ``jacobian``
+        from ..compile.odeform import ode_form
+        form = ode_form(compiled)
+        # the linear form has no modes: its right-hand side is called without the dispatch of ``ode_rhs``
+        self._linear_rhs = form.rhs if form.linear else None
 
     def rhs(self, t, u):
         self.nfev += 1
+        if self._linear_rhs is not None:
+            return self._linear_rhs(t, u)
         return self.c.ode_rhs(t, u, self.modes)
 
     def jacobian(self, t, u, g=None):
