@@ -549,7 +549,9 @@ def test_speed_source_with_a_callable_reference_at_a_tight_tolerance():
     res = m.simulate(0.6314, dt_out=0.0015785, solver="ida", rtol=1e-10)
     assert res.stats.rhs_calls < 20_000
     exact = -0.4406 * np.exp(-res.t / 0.08126) / 0.08126
-    assert np.abs(res["J1.w"] - np.array([w_ref(t) for t in res.t])).max() < 1e-9
+    # the prescribed speed within what IDA promises for it (rtol |w| + atol: Newton's iteration stops there; since
+    # session 10 the forces no longer hold it to far below, measured 8.4e-10 against 1.9e-9)
+    assert np.abs(res["J1.w"] - np.array([w_ref(t) for t in res.t])).max() < 1e-10 * 18.71 + 1e-12
     assert np.abs(res["J1.a"] - exact).max() < 1e-7 * np.abs(exact).max()
     # the bound holds for the derivative the residual uses
     from regmech.signals import Function
