@@ -133,6 +133,13 @@ SPARSE_FROM = 50
 DENSE_MAPS_UPTO = 64
 #: propagators kept per mode set (one per distinct step length)
 CACHE_SIZE = 8
+#: propagators of sub-steps kept per mode set for ``ExpmStepper.interpolate`` on models of at most
+#: ``SUB_CACHE_UPTO`` independent coordinates: the event scan of the ODE-form driver reads every step at the same
+#: fractions of it (``ode_driver.EventTracker.scan``), so with a fixed step the sub-steps repeat (fuzz CI seed
+#: 4002, wheels with road contacts: 13,835 interpolations, each a new matrix exponential, 11 of 22 s of its expm
+#: run); the refinements and the event location read other instants, which pass through an LRU of this size
+SUB_CACHE_SIZE = 24
+SUB_CACHE_UPTO = 400
 #: Gauss-Legendre points for integrating a prescribed speed to a displacement
 SPEED_QUADRATURE = 8
 #: their nodes and weights on [-1, 1] (computed once: numpy's leggauss costs ~0.1 ms a call)
@@ -520,6 +527,7 @@ class ModeSystem:
         self.Vinv = fit_matrix(self.p)
         self.nodes = fit_nodes(self.p)
         self._cache: OrderedDict = OrderedDict()
+        self._sub_cache: OrderedDict = OrderedDict()
         self.setups = 0
         self.setup_time = 0.0
         self.last_stats: dict = {}
@@ -586,11 +594,15 @@ class ModeSystem:
         return self._lt_inv(self._position_unscale(q[nq:])), self._lt_inv(q[:nq])
 
     # --------------------------------------------------------- propagators
-    def propagator(self, h: float, cache: bool = True) -> "Propagator":
+    def propagator(self, h: float, cache: bool = True, sub: bool = False) -> "Propagator":
+        """The propagator of a step h, kept in the step cache (``cache``) or, for a sub-step of the interpolation
+        (``sub``), in the sub-step cache of a small model (``SUB_CACHE_SIZE``)."""
         key = float(f"{h:.12e}")
-        prop = self._cache.get(key) if cache else None
+        store = self._cache if cache else (self._sub_cache if sub and self.nq <= SUB_CACHE_UPTO else None)
+        limit = CACHE_SIZE if cache else SUB_CACHE_SIZE
+        prop = store.get(key) if store is not None else None
         if prop is not None:
-            self._cache.move_to_end(key)
+            store.move_to_end(key)
             return prop
         import time
         t0 = time.perf_counter()
@@ -601,10 +613,10 @@ class ModeSystem:
         self.setups += 1
         self.setup_time += time.perf_counter() - t0
         self.last_stats = coef.stats
-        if cache:
-            self._cache[key] = prop
-            if len(self._cache) > CACHE_SIZE:
-                self._cache.popitem(last=False)
+        if store is not None:
+            store[key] = prop
+            if len(store) > limit:
+                store.popitem(last=False)
         return prop
 
 
@@ -727,7 +739,7 @@ class ExpmStepper(Stepper):
         if tq == self.t_old:
             return self.u_old
         tau = tq - self.t_old
-        prop = self.ms.propagator(tau, cache=False)
+        prop = self.ms.propagator(tau, cache=False, sub=True)
         self._interp += 1
         q = prop.step_poly(self.q_old, self._step_beta, tau / self._step_h)
         dg = self.dg_speed_old + self._speed_displacement(self.t_old, tq)
