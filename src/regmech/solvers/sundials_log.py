@@ -29,9 +29,17 @@ while it is open are collected in the list it yields, and nothing else changes.
 from __future__ import annotations
 
 import ctypes
+import os
 import re
 import sys
 import threading
+
+# SUNDIALS' warnings do not go through the error handlers but through its logger, which writes them to the
+# process's standard output (``[WARNING][rank 0][.../ida.c:1470][IDASolve] At the end of the first step, there are still
+# some root functions identically 0``: a friction guard that is exactly zero at a segment's start, which regmech's
+# event logic expects and handles, ``hybrid.events``). The logger reads this variable when a solver's context is
+# created; empty, it writes nothing. A user who set it keeps their choice.
+os.environ.setdefault("SUNLOGGER_WARNING_FILENAME", "")
 
 #: scikit-sundae's error line (its ``_sunerr_handler``): ``\n[IDASolve, Error: -1] <message>\n``
 _LINE = re.compile(r"\A\s*\[(\w+), Error: (-?\d+)\]\s*(.*?)\s*\Z", re.S)
