@@ -12,6 +12,9 @@ At a limit reached moving into it the speeds jump (``_impact``): ``v+ = v- + M^-
 ``v-`` in the mass norm with the rigid rows at their (source) speeds, the stuck friction rows at zero slip
 and the stop's row at ``-e w_rel-`` (or 0: contact). The energy the impulse ``P`` takes,
 ``-P (w_rel- + w_rel+) / 2``, is reported with the impact's event and booked in the stop's heat.
+
+Stops reached at the same instant get their impulses one after another, each from the speeds the previous
+one left (the stops already holding count as stuck rows), not as one joint impulse problem (an LCP).
 """
 
 from __future__ import annotations
