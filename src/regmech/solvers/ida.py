@@ -614,7 +614,7 @@ def _reference_noise(c, t, span=None, level="a"):
     return noise
 
 
-def _atol_vector(c, atol, y, yp, k_max, kind_atol=None, t=None, span=None, rtol=None):
+def _atol_vector(c, atol, rtol, y, yp, k_max, kind_atol=None, t=None, span=None):
     """Absolute tolerances per unknown.
 
     Positions, velocities and device states take the user's ``atol``, or
@@ -634,7 +634,7 @@ def _atol_vector(c, atol, y, yp, k_max, kind_atol=None, t=None, span=None, rtol=
     # wheels on one hub, a position servo, a sliding clutch) failed its error test on the rolling constraints'
     # forces at every other step (147,360 attempts, 29 s, states 6.6e-6 of their range off at rtol 1e-8); held
     # to rtol, 3,730 attempts, 0.7 s, 2.5e-7 off
-    f_tol = atol if rtol is None else max(float(atol), float(rtol))
+    f_tol = max(float(atol), float(rtol))
     noise = 1e3 * np.finfo(float).eps * k_max * max(1.0, float(np.abs(x).max(initial=0.0)))
     vec = np.full(c.N, float(atol)) if kind_atol is None else np.array(kind_atol, float)
     # a prescribed motion whose reference is a callable imposes accelerations known to the round-off of their
@@ -698,9 +698,8 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     """
     with_events = guards_for(c) is not None
     rtol, atol, linsolver, max_step, max_order, k_max, order, max_steps, native = opts
-    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, y, yp, k_max, kind_atol, t,
-                                                       (float(grid[0]), float(grid[-1])) if len(grid) else None,
-                                                       rtol)
+    atol_vec = atol if np.ndim(atol) else _atol_vector(c, atol, rtol, y, yp, k_max, kind_atol, t,
+                                                       (float(grid[0]), float(grid[-1])) if len(grid) else None)
     if native:
         # one native solver serves every segment of the run: re-initialised (IDAReInit) with the segment's
         # tolerances, modes and event functions (its event bookkeeping is ours, see ``ida_native``)
