@@ -339,3 +339,57 @@ def test_sweep_passes_the_accuracy_to_every_run():
     table = rm.sweep(build, {"c": [100.0]}, ["J2.w"], executor="serial", progress=False, t_end=1.0, dt_out=0.01,
                      accuracy=1e-4)
     assert list(table["status"] if hasattr(table, "iloc") else table.column("status")) == ["ok"]
+
+
+# ----------------------------------------------------------------------------- a small motion's atol
+def _counting(fn, calls, loose_override=None):
+    """``fn`` recording (rtol, atol) of every run; ``loose_override(rtol, atol)`` may replace the rtol a run gets."""
+    def run(model, rtol, atol, **kw):
+        calls.append((rtol, atol))
+        return fn(model, rtol=rtol if loose_override is None else loose_override(rtol, atol), atol=atol, **kw)
+    return run
+
+
+def test_small_motion_pair_keeps_its_first_run():
+    """A motion of 1e-2 rad: the tight run gets atol scaled to it, and the first run (the solver's default
+    atol ratio) stays the pair's loose run when the pair meets the accuracy: two runs, not three; the
+    estimate still bounds the error against the closed form."""
+    _load()
+    calls = []
+    m, exact = damped_oscillator(phi0=1e-2)
+    res = simulate_with_accuracy(m, "ida", _counting(SOLVERS["ida"], calls), 0.0, 5.0, 0.01, 1e-4, {})
+    assert len(calls) == 2
+    (r1, a1), (r2, a2) = calls
+    assert r2 == pytest.approx(r1 / 10) and a1 == pytest.approx(1e-2 * r1)
+    assert a2 < 1e-2 * r2 / 10          # scaled to the motion (about 2e-2 / 1), at least ten times below
+    ans = exact(res.t)
+    err = max(float(np.max(np.abs(res[k] - ans[k]))) / float(np.ptp(ans[k])) for k in ans)
+    assert err <= res.stats.error_estimate <= 1e-4
+    assert "atol of a motion of 1" in res.stats.extra["error_method"]
+
+
+def test_small_motion_pair_repeats_its_loose_run_when_it_misses():
+    """When the pair with the unscaled first run misses the accuracy (here the first run is made coarse on
+    purpose), the loose run is repeated with the scaled atol against the same tight run: three runs, and the
+    estimate is that of the scaled pair."""
+    _load()
+    calls = []
+    unscaled = []
+
+    def coarse_first(rtol, atol):
+        if not unscaled:
+            unscaled.append(atol)
+            return 1e-2
+        return rtol
+    m, exact = damped_oscillator(phi0=1e-2)
+    res = simulate_with_accuracy(m, "ida", _counting(SOLVERS["ida"], calls, coarse_first), 0.0, 5.0, 0.01, 1e-4,
+                                 {})
+    assert len(calls) == 3
+    (r1, a1), (r2, a2), (r3, a3) = calls
+    assert r3 == r1 and r2 == pytest.approx(r1 / 10)
+    assert a3 == pytest.approx(10 * a2) and a3 < a1           # the loose run again, with the pair's atol
+    assert res.stats.extra["attempts"] == 1
+    assert "atol of a motion of 1" not in res.stats.extra["error_method"]
+    ans = exact(res.t)
+    err = max(float(np.max(np.abs(res[k] - ans[k]))) / float(np.ptp(ans[k])) for k in ans)
+    assert err <= res.stats.error_estimate <= 1e-4
