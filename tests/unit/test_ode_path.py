@@ -142,3 +142,65 @@ def test_fixed_step_rows_with_the_step_slope_match_recomputed_rows():
         u = np.array([res[f"{nm}.phi"][k] for nm in names] + [res[f"{nm}.w"][k] for nm in names])
         a = c.ode_rhs_general(res.t[k], u, c.modes0)[len(names):]
         assert np.array_equal([res[f"{nm}.a"][k] for nm in names], a)
+
+
+def test_deferred_accelerations_are_the_rows_recomputed_on_their_side_of_a_breakpoint():
+    # an adaptive run's interpolated rows get y' = g(t, u) only when an output reads it; at the breakpoint of a
+    # Step input the row before it (left limit) and the row after it (right limit) must read the input on their
+    # own sides, as at once: the left row's acceleration without the step, the right row's with it
+    m = chain(4, drive=Step(height=2.0, start_time=0.25))
+    res = m.simulate(0.5, 0.01, solver="scipy:DOP853", rtol=1e-8)
+    traj = res._traj
+    assert traj._yp_fill is not None                       # nothing read y' yet
+    c = m.compile()
+    names = c.structure.coord_names
+    for k in range(len(res.t)):
+        u = np.array([traj.Y[k, c.ix[j]] for j in range(c.n)] + [traj.Y[k, c.iv[j]] for j in range(c.n)])
+        left = bool(traj.left[k])
+        g = ode_form(c).rhs(res.t[k], u, left)
+        assert np.array_equal([res[f"{nm}.a"][k] for nm in names], g[c.n:2 * c.n]), (k, res.t[k], left)
+    at = np.nonzero(np.isclose(res.t, 0.25))[0]
+    assert len(at) == 2 and traj.left[at[0]] and not traj.left[at[1]]
+    # the drive's torque acts on the first inertia: its acceleration jumps by the step over its inertia
+    J0 = float(m[names[0]].J)
+    assert res[f"{names[0]}.a"][at[1]] - res[f"{names[0]}.a"][at[0]] == pytest.approx(2.0 / J0, rel=1e-6)
+
+
+def test_deferred_accelerations_survive_pickling():
+    import pickle
+    m = chain(3, drive=Step(height=1.0, start_time=0.1))
+    res = m.simulate(0.3, 0.01, solver="scipy:RK45", rtol=1e-8)
+    again = pickle.loads(pickle.dumps(res))               # computes them first: the function is not pickled
+    assert np.array_equal(again["J0.a"], res["J0.a"])
+    assert np.any(res["J0.a"] != 0.0)
+
+
+def test_state_scale_says_when_its_tolerances_change():
+    from regmech.solvers import scipy_ivp
+    c = chain(3).compile()
+    scale = scipy_ivp.StateScale(1e-8, c)
+    size = c.ode_size()
+    assert not scale.see(np.zeros(size))                  # at the floor: nothing moves
+    assert not scale.see(np.full(size, 1e-4))             # still below the floor (1e-3 of a motion of 1)
+    before = scale.tolerances()
+    assert scale.see(np.full(size, 0.2))                  # a kind grew below saturation: new tolerances
+    assert not np.array_equal(scale.tolerances(), before)
+    assert not scale.see(np.full(size, 0.1))              # nothing grew
+    assert scale.see(np.full(size, 3.0))                  # saturated now (factor 0.2 -> 1)
+    assert not scale.see(np.full(size, 7.0))              # beyond saturation: unchanged
+    assert np.allclose(scale.tolerances(), 1e-8)
+
+
+def test_spectral_radius_of_the_linear_form_is_kept_with_the_compiled_model(monkeypatch):
+    m = chain(30)
+    c = m.compile()
+    problem, u = start(c)
+    calls = []
+    bound = od.spectral_bound
+    monkeypatch.setattr(od, "spectral_bound", lambda J, c: calls.append(1) or bound(J, c))
+    rho = od.spectral_radius(problem, 0.0, u, above=1e9)
+    assert od.spectral_radius(problem, 0.0, u, above=1e9) == rho and len(calls) == 1
+    m["sd3"].c = 4e4                                       # a stiffer link: a new compiled model, a new radius
+    c2 = m.compile()
+    problem2, u2 = start(c2)
+    assert od.spectral_radius(problem2, 0.0, u2, above=1e9) > rho and len(calls) == 2

@@ -157,8 +157,9 @@ class OdeForm:
             self.slots = plan.offset_slots
             self.buf = plan.buf
 
-    def rhs(self, t, u):
-        """``[v; -M^-1 S^T tau; dz]`` (linear form only; see the module docstring)."""
+    def rhs(self, t, u, left=None):
+        """``[v; -M^-1 S^T tau; dz]`` (linear form only; see the module docstring). ``left``: the side of the
+        time-varying offsets at a breakpoint (default: the current segment's, ``t >= c._t_right``)."""
         c, n, n_c = self.c, self.n, self.n_c
         if self.on_u:
             out = self.T_mv(u)
@@ -171,7 +172,8 @@ class OdeForm:
         if not self.t0_zero:
             out += self.t0
         if self.V is not None:
-            left = t >= c._t_right
+            if left is None:
+                left = t >= c._t_right
             buf = self.buf
             for grp, start in self.slots:
                 grp.offsets_into(buf, start, t, left)

@@ -18,7 +18,10 @@ of every component.
 
 Stored: ``Y`` (points x N, every unknown) and ``YPv`` (points x n, the
 derivatives of the speeds: the accelerations of the non-dummy coordinates);
-the rest of ``y'`` is not needed by any output.
+the rest of ``y'`` is not needed by any output. A run may hand over ``YPv``
+as a function computed on the first read of an acceleration (the ODE-form
+path of a linear model: ``g(t, u)`` per output row is otherwise most of its
+recording cost).
 """
 
 from __future__ import annotations
@@ -39,18 +42,39 @@ class Trajectory:
         self.c = c
         self.t = np.asarray(t, float)
         self.Y = Y
-        YP = np.asarray(YP)
-        if YP.ndim == 2 and YP.shape[1] == c.N and c.N != c.n:
-            YP = YP[:, c.iv]         # a copy: the caller's full y' can be freed
-        self.YPv = YP
+        # ``YP`` may be a function that returns it, called when an output first reads y' (the ODE-form path
+        # computes the accelerations of its output rows only then: ``ode_driver._Sink.deferred_rates``)
+        self._yp_fill = YP if callable(YP) else None
+        self._YPv = None if callable(YP) else self._speed_columns(YP)
         self.left = np.asarray(left, bool)
         self.modes = modes
         self._recipes: dict = {}     # component name -> {signal name: recipe}
         self._maps = None            # name lookups over the whole structure, built on first use
         self._names = None
 
+    def _speed_columns(self, YP):
+        c = self.c
+        YP = np.asarray(YP)
+        if YP.ndim == 2 and YP.shape[1] == c.N and c.N != c.n:
+            YP = YP[:, c.iv]         # a copy: the caller's full y' can be freed
+        return YP
+
+    @property
+    def YPv(self):
+        """The derivatives of the speeds (points x n), computed on first use when the run deferred them."""
+        if self._YPv is None:
+            fill, self._yp_fill = self._yp_fill, None
+            self._YPv = self._speed_columns(fill())
+        return self._YPv
+
+    @YPv.setter
+    def YPv(self, value):
+        self._yp_fill, self._YPv = None, value
+
     def __getstate__(self):
-        # recipes hold closures and the lookups are derived: both are rebuilt on first use
+        # recipes hold closures and the lookups are derived: both are rebuilt on first use; deferred
+        # accelerations are computed first (the function that computes them is not pickled)
+        self.YPv
         state = self.__dict__.copy()
         state["_recipes"] = {}
         state["_maps"] = None
@@ -58,12 +82,14 @@ class Trajectory:
         return state
 
     def __setstate__(self, state):
-        if "YPv" not in state:        # a trajectory pickled when it kept all of y' and eager matrices
+        if "YPv" in state:            # pickled before y' could be deferred
+            state["_YPv"] = state.pop("YPv")
+        elif "_YPv" not in state:     # a trajectory pickled when it kept all of y' and eager matrices
             c, YP = state["c"], state.pop("YP")
-            state["YPv"] = YP[:, c.iv] if YP.ndim == 2 and YP.shape[1] == c.N and c.N != c.n else YP
+            state["_YPv"] = YP[:, c.iv] if YP.ndim == 2 and YP.shape[1] == c.N and c.N != c.n else YP
             for key in ("_mat", "_index_cache"):
                 state.pop(key, None)
-        state.update(_recipes={}, _maps=None, _names=None)
+        state.update(_recipes={}, _maps=None, _names=None, _yp_fill=None)
         self.__dict__.update(state)
 
     # columns over time ----------------------------------------------------------

@@ -57,15 +57,18 @@ class ModeLogic:
         # its static capacity at one event broke away 1.7 ms later under DOP853, at once under IDA, whose round-off
         # crossing of a slip of 1e-97 gave the extra event: 1 % of the range apart). So the logic runs again from
         # its own answer until that changes nothing (bounded; a pair of answers taking turns keeps the later one).
+        rerun = False
         for _ in range(3):
             if not self._held_sliding(y, yp, new, scale):
                 break           # the usual case: nothing the logic would read differently (no second run)
+            rerun = True
             y2, yp2, again, scale = self._settle_once(t, (y, yp), new, None, False, lam_rate)
             if np.array_equal(again, new):
                 break
             y, yp, new = y2, yp2, again
         self._check_sliding_sides(t, y, yp, new, scale)
-        self._relief = self._relief_events(t, y, yp, new, scale)
+        if rerun:       # else ``_settle_once`` found them for this very (y, yp, new, scale)
+            self._relief = self._relief_events(t, y, yp, new, scale)
         self._ev_key = None
         self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
         q = self.q_all(t, y) if self.has_inputs else None

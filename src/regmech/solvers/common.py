@@ -334,13 +334,22 @@ class StateScale:
         self.kinds = [k for k in kinds if (len(range(self.size)[k]) if isinstance(k, slice) else len(k))]
         self.largest = np.zeros(len(self.kinds))
 
-    def see(self, u):
-        """Take the magnitudes of a state ``u`` (or of rows of states, ``u[..., i]``) into account."""
+    def see(self, u) -> bool:
+        """Take the magnitudes of a state ``u`` (or of rows of states, ``u[..., i]``) into account; whether
+        that changed the tolerances (a kind's magnitude grew below its saturation)."""
         u = np.asarray(u, float)
+        changed = False
         for k, idx in enumerate(self.kinds):
             part = u[..., idx]
             if part.size:
-                self.largest[k] = max(self.largest[k], float(np.max(np.abs(part))))
+                m = float(np.max(np.abs(part)))
+                if m > self.largest[k]:
+                    # its factor clip(m_k / saturation, floor, 1) moves unless it stays at 1 or at the floor
+                    old = self.largest[k] / self.saturation
+                    self.largest[k] = m
+                    new = m / self.saturation
+                    changed |= not (old >= 1.0 or new <= self.floor)
+        return changed
 
     def factors(self):
         """``clip(m_k / saturation, floor, 1)`` per kind."""

@@ -144,7 +144,8 @@ class GrowthWatch:
         self._forcing: deque = deque()   # (t_k, D_k), D_k decreasing: the window maximum is the first
         self.largest_ratio = 0.0         # max N / R over the run (how close a run came to the limit)
         self.largest_roughness = 0.0     # max over the run of min(r_k) over ROUGH_STEPS steps in a row
-        self._recent: list[tuple[float, np.ndarray, float, float]] = []    # (t, u, N, r) of the last steps
+        # (t, u, N, r, u - the previous entry's u) of the last steps
+        self._recent: list[tuple[float, np.ndarray, float, float, object]] = []
 
     def segment_start(self, rhs, t, t_stop, size):
         """Record ``D_k`` of a segment [t, t_stop] started after a time event or a mode change
@@ -213,11 +214,17 @@ class GrowthWatch:
         while recent and recent[-1][0] >= t:      # a restart at an event before the last step end
             recent.pop()
         r = 0.0
-        if len(recent) >= 2 and n > 0:
-            (t0, u0, _, _), (t1, u1, _, _) = recent[-2], recent[-1]
-            d = (u - u1) - ((t - t1) / (t1 - t0)) * (u1 - u0)
-            r = state_norm(d) / n
-        recent.append((float(t), u.copy(), n, r))
+        du = None
+        if recent:
+            t1, u1 = recent[-1][0], recent[-1][1]
+            du = u - u1
+            if len(recent) >= 2 and n > 0:
+                # d = (u - u1) - (t - t1) / (t1 - t0) * (u1 - u0), with u1 - u0 kept from the step before
+                t0 = recent[-2][0]
+                d = np.multiply(recent[-1][4], (t - t1) / (t1 - t0))
+                np.subtract(du, d, out=d)
+                r = state_norm(d) / n
+        recent.append((float(t), u.copy(), n, r, du))
         if len(recent) > ROUGH_STEPS + 1:
             recent.pop(0)
         if len(recent) <= ROUGH_STEPS:

@@ -188,8 +188,8 @@ class ScipyStepper(Stepper):
         self._dense = None
         self.nsteps += 1
         if self._retune:
-            self.scale.see(self.u)
-            self.solver.atol = self.scale.tolerances()
+            if self.scale.see(self.u):      # the same tolerances are not rebuilt
+                self.solver.atol = self.scale.tolerances()
         if self.budget is not None:
             self.budget.charge(self, self.problem)
 
