@@ -393,3 +393,19 @@ def test_small_motion_pair_repeats_its_loose_run_when_it_misses():
     ans = exact(res.t)
     err = max(float(np.max(np.abs(res[k] - ans[k]))) / float(np.ptp(ans[k])) for k in ans)
     assert err <= res.stats.error_estimate <= 1e-4
+
+
+def test_adaptive_estimate_is_twice_the_pairs_difference():
+    from regmech.solvers.accuracy import PAIR_FACTOR, compare_runs, result_state_labels
+    from regmech.solvers.common import output_grid
+    _load()
+    runs = []
+
+    def keep(model, **kw):
+        runs.append(SOLVERS["scipy:DOP853"](model, **kw))
+        return runs[-1]
+    m, _ = damped_oscillator()
+    res = simulate_with_accuracy(m, "scipy:DOP853", keep, 0.0, 5.0, 0.01, 1e-4, {})
+    assert len(runs) == 2 and res is runs[1] and PAIR_FACTOR == 2.0
+    diff = compare_runs(runs[0], runs[1], result_state_labels(m.compile()), output_grid(0.0, 5.0, 0.01)).value
+    assert res.stats.error_estimate == pytest.approx(PAIR_FACTOR * diff, rel=1e-12)

@@ -56,3 +56,13 @@ def test_random_calibration_runs_and_reports_a_fuzz_model(tmp_path):
     assert [(r.case, r.solver, r.status) for r in again] == [(r.case, r.solver, r.status) for r in recs]  # resumed
     md = C.random_markdown(recs, cases, {}, 120.0, 0.0, "test", cache_dir=tmp_path / "cache")
     assert "| `ida` | 1e-02 | 1 | 1 | **0** |" in md and "None." in md
+
+
+def test_a_verdict_beyond_the_accuracy_within_the_references_resolution_is_unresolved():
+    from regmech.bench.calibration import verdict
+    assert verdict(9e-5, 1e-4, 1e-9) == "met"
+    assert verdict(1.3e-4, 1e-4, 1.1e-7) == "broken"
+    # fuzz seed 72: rotational speeds at rest, round-off against the measure's floor; the references differ by
+    # 1.1e-4 in that measure, so an error of 1.1e-4 at accuracy 1e-4 cannot be judged
+    assert verdict(1.1e-4, 1e-4, 1.1e-4) == "unresolved"
+    assert verdict(1.1e-4, 1e-4, float("nan")) == "broken"          # no cross-check: judged against the reference

@@ -99,6 +99,28 @@ def test_repeated_run_is_reported_and_counted():
     c = m.compile()
     once = m.simulate(t_end=0.2, solver="ida", atol=np.full(c.N, 1e-8))
     assert "atol_rescaled" not in once.stats.extra
+    # atol_rescale=False: one run with the scalar atol as given
+    plain = m.simulate(t_end=0.2, solver="ida", atol_rescale=False)
+    assert "atol_rescaled" not in plain.stats.extra
+    assert plain.stats.rhs_calls == info["first_run_rhs_calls"]
+
+
+def test_the_contract_makes_its_first_ida_run_once():
+    """The accuracy contract's first run is its pair's loose run, and it scales a small motion's atol itself:
+    ida does not repeat that run (``atol_rescale=False``); the returned run still meets the accuracy."""
+    from regmech.solvers import SOLVERS, _load
+    from regmech.solvers.accuracy import simulate_with_accuracy
+    _load()
+    m = chain(0.3, friction=False)
+    ref = m.simulate(t_end=0.2, solver="scipy:DOP853", rtol=1e-11, atol=1e-14, max_steps=100_000)
+    flags = []
+
+    def ida(model, **kw):
+        flags.append(kw.get("atol_rescale", True))
+        return SOLVERS["ida"](model, **kw)
+    res = simulate_with_accuracy(m, "ida", ida, 0.0, 0.2, None, 1e-4, {})
+    assert flags[0] is False and all(flags[1:])
+    assert rel_err(ref, res, "M0.v") <= res.stats.error_estimate <= 1e-4
 
 
 def _compiled_chain():

@@ -131,3 +131,14 @@ def test_convolution_stops_when_newton_keeps_failing_and_names_the_stiff_link():
                        stiff_check=False)
     msg = str(err.value)
     assert "failed to converge" in msg and "'link5'" in msg and "round-off" in msg
+
+
+def test_dop853_cap_shrinks_with_rtol_as_its_steps_do():
+    """The cap is STABLE_CAP of the stability interval at rtol 1e-3 and above, and shrinks as rtol^(1/8) below
+    (as DOP853's own steps do), so that the accuracy contract's pair differs where steps are capped."""
+    cap = scipy_ivp.stability_cap("DOP853", 100.0, 1e-3)
+    assert cap == pytest.approx(scipy_ivp.STABLE_CAP * 6.0 / 100.0)
+    assert scipy_ivp.stability_cap("DOP853", 100.0, 1e-1) == cap
+    assert scipy_ivp.stability_cap("DOP853", 100.0, 1e-11) == pytest.approx(0.1 * cap)
+    assert scipy_ivp.stability_cap("DOP853", 100.0) == cap
+    assert scipy_ivp.stability_cap("RK45", 100.0, 1e-6) is None

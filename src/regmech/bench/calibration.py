@@ -6,7 +6,13 @@ every accuracy ``a`` of ``LEVELS`` (a subset per solver, ``levels_for``), one
 run ``model.simulate(t_end, dt_out, solver=s, accuracy=a)``. Its outcome:
 
 * ``met``: it returned and its *achieved* error is at most ``a``;
-* ``broken``: it returned and the achieved error exceeds ``a`` (a broken promise);
+* ``broken``: it returned and the achieved error exceeds ``a`` by more than the
+  reference's resolution (a broken promise);
+* ``unresolved``: the achieved error exceeds ``a`` but not by the reference's
+  resolution (the two references' difference): the reference cannot judge it
+  (fuzz seed 72: a model whose rotational speeds stay at rest, 1e-17 rad/s of
+  round-off against the measure's floor of 1e-12, where the references
+  differ by 1.1e-4 of that floor);
 * ``refused``: it raised a regmech error (``AccuracyError`` or another refusal that
   names the component);
 * ``limit``: it hit the time limit per run; ``crash``: anything else (a bug).
@@ -231,7 +237,7 @@ class CalRecord:
     group: str
     solver: str
     accuracy: float
-    status: str                      # met | broken | refused | limit | crash
+    status: str                      # met | broken | unresolved | refused | limit | crash
     used: str = ""                   # the solver actually used (auto's choice)
     wall: float = math.nan           # stats.wall_time: every run of the contract
     main: float = math.nan           # the returned run alone
@@ -283,8 +289,22 @@ def run_cell(case: CalCase, ref: Reference, solver: str, accuracy: float, limit:
         from regmech.solvers.accuracy import match_events
         m = match_events([Event(*e) for e in ref.events], res.events)
         rec.same_path = "yes" if m.same_path else "no"
-    rec.status = "met" if rec.achieved <= accuracy else "broken"
+    rec.status = verdict(rec.achieved, accuracy, ref.resolution)
     return rec
+
+
+#: the outcomes of a returned run
+RETURNED = ("met", "broken", "unresolved")
+
+
+def verdict(achieved: float, accuracy: float, resolution: float) -> str:
+    """``met`` (achieved <= accuracy), ``broken`` (beyond it by more than the reference's resolution) or
+    ``unresolved`` (beyond it by no more than what the reference itself is uncertain by)."""
+    if achieved <= accuracy:
+        return "met"
+    if math.isfinite(resolution) and achieved - resolution <= accuracy:
+        return "unresolved"
+    return "broken"
 
 
 def _fields():
@@ -394,10 +414,10 @@ def summary_rows(records, solvers=SOLVERS):
         rs = [r for r in records if r.solver == s]
         if not rs:
             continue
-        ok = [r for r in rs if r.status in ("met", "broken")]
+        ok = [r for r in rs if r.status in RETURNED]
         rows.append({
             "solver": s, "runs": len(rs), **{k: sum(r.status == k for r in rs)
-                                              for k in ("met", "broken", "refused", "limit", "crash")},
+                                              for k in ("met", "broken", "unresolved", "refused", "limit", "crash")},
             "est_over_acc": _median([r.estimate / r.accuracy for r in ok]),
             "achieved_over_acc_max": max((r.achieved / r.accuracy for r in ok), default=math.nan),
             # only where the error is not round-off: achieved and estimate near 1e-15 say nothing of the estimate
@@ -418,7 +438,7 @@ def plot_calibration(records, path, solvers=SOLVERS) -> None:
     markers = "os^vD<>phX*P8"
     named = [s for s in solvers if any(r.solver == s for r in records)]
     for k, s in enumerate(named):
-        rs = [r for r in records if r.solver == s and r.status in ("met", "broken")]
+        rs = [r for r in records if r.solver == s and r.status in RETURNED]
         if not rs:
             continue
         jitter = 10 ** (0.12 * (k - len(named) / 2) / len(named))      # side by side at each level
@@ -450,16 +470,18 @@ def calibration_markdown(records, cases, refs, machine: dict, limit: float, wall
              "1000- and 10000-car trains, hard cases at CI size) and the returned run is compared with the case's "
              "reference in the contract's own measure: max over the output instants and the state signals "
              "(position and speed of every mass, internal states) of the error over the range of the reference's "
-             "signals of that kind. **met**: achieved <= a; **broken**: achieved > a (a broken promise); "
+             "signals of that kind. **met**: achieved <= a; **broken**: achieved > a by more than the reference's "
+             "resolution (a broken promise); **unresolved**: achieved > a within the reference's resolution; "
              "**refused**: a regmech error (`AccuracyError`, or a solver's own refusal naming the component); "
              "**limit**: the time limit. Definitions: `regmech.bench.calibration`, `regmech.solvers.accuracy`.", "",
              f"![calibration]({plot_name})", "",
              "## Promises kept, by solver", "",
-             "| solver | runs | met | broken | refused | limit | crash | median estimate / a | max achieved / a | "
-             "max achieved / estimate | retried | other path | time with / without the check |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| solver | runs | met | broken | unresolved | refused | limit | crash | median estimate / a | "
+             "max achieved / a | max achieved / estimate | retried | other path | time with / without the check |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in summary_rows(records):
-        lines.append(f"| `{row['solver']}` | {row['runs']} | {row['met']} | **{row['broken']}** | {row['refused']} | "
+        lines.append(f"| `{row['solver']}` | {row['runs']} | {row['met']} | **{row['broken']}** | "
+                     f"{row['unresolved']} | {row['refused']} | "
                      f"{row['limit']} | {row['crash']} | {_g(row['est_over_acc'])} | "
                      f"{_g(row['achieved_over_acc_max'])} | {_g(row['achieved_over_est_max'])} | {row['retried']} | "
                      f"{row['other_path']} | {_g(row['cost'], '{:.2f}')} |")
@@ -479,7 +501,7 @@ def calibration_markdown(records, cases, refs, machine: dict, limit: float, wall
         cells = []
         for s in ("ida", "expm", "scipy:DOP853", "rk4"):
             r = by.get((case.key, s, 1e-4))
-            cells.append("-" if r is None or r.status not in ("met", "broken") else
+            cells.append("-" if r is None or r.status not in RETURNED else
                          f"{r.wall * 1e3:.0f} / {r.main * 1e3:.0f} ms")
         lines.append(f"| {case.key} | " + " | ".join(cells) + " |")
     # auto
@@ -517,13 +539,14 @@ def calibration_markdown(records, cases, refs, machine: dict, limit: float, wall
         ref = refs.get(case.key)
         if ref is not None:
             lines.append(f"| {case.key} | {case.group} | {ref.method} | {_g(ref.resolution)} |")
-    broken = [r for r in records if r.status in ("broken", "crash")]
+    broken = [r for r in records if r.status in ("broken", "crash", "unresolved")]
     if broken:
-        lines += ["", "## Broken promises and crashes", "", "| case | solver | a | estimate | achieved | worst | path |"
-                  " settings |", "|---|---|---|---|---|---|---|---|"]
+        lines += ["", "## Broken promises, unresolved verdicts and crashes", "",
+                  "| case | solver | a | verdict | estimate | achieved | worst | path | settings |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for r in broken:
-            lines.append(f"| {r.case} | `{r.solver}` | {r.accuracy:.0e} | {_g(r.estimate)} | {_g(r.achieved)} | "
-                         f"{r.worst} | {r.same_path} | {r.settings} {r.reason[:120]} |")
+            lines.append(f"| {r.case} | `{r.solver}` | {r.accuracy:.0e} | {r.status} | {_g(r.estimate)} | "
+                         f"{_g(r.achieved)} | {r.worst} | {r.same_path} | {r.settings} {r.reason[:120]} |")
     return "\n".join(lines) + "\n"
 
 
@@ -702,25 +725,28 @@ def random_markdown(records, cases, machine: dict, limit: float, wall_total: flo
              "asked for `accuracy=a` with `auto` (a = 1e-3 is the default call `m.simulate(t_end, dt_out)`), `ida` and "
              "`scipy:DOP853`, and the returned run compared with a reference (scipy:DOP853 at rtol 1e-10, cross-checked "
              "by ida at rtol 1e-10) in the contract's measure (max over the output instants and the state signals "
-             "of the error over the range of the reference's signals of that kind). **broken**: achieved error > a; "
+             "of the error over the range of the reference's signals of that kind). **broken**: achieved error > a "
+             "by more than the reference's resolution (the two references' difference); **unresolved**: > a within "
+             "that resolution; "
              f"**refused**: a regmech error; **limit**: the time limit. {len(judged)} models judged, "
              f"{len(no_ref)} without a reference (both reference runs failed or hit their limit).", "",
-             "| solver | a | runs | met | broken | refused | limit | crash | median estimate / a | max achieved / a | "
-             "median time with / without the check |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| solver | a | runs | met | broken | unresolved | refused | limit | crash | median estimate / a | "
+             "max achieved / a | median time with / without the check |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for solver, acc in RANDOM_CELLS:
         rs = [r for r in runs if r.solver == solver and r.accuracy == acc]
         if not rs:
             continue
-        ok = [r for r in rs if r.status in ("met", "broken")]
-        c = {k: sum(r.status == k for r in rs) for k in ("met", "broken", "refused", "limit", "crash")}
+        ok = [r for r in rs if r.status in RETURNED]
+        c = {k: sum(r.status == k for r in rs) for k in ("met", "broken", "unresolved", "refused", "limit", "crash")}
         lines.append(f"| `{solver}`{' (default call)' if solver == 'auto' and acc == 1e-3 else ''} | {acc:.0e} | "
-                     f"{len(rs)} | {c['met']} | **{c['broken']}** | {c['refused']} | {c['limit']} | {c['crash']} | "
+                     f"{len(rs)} | {c['met']} | **{c['broken']}** | {c['unresolved']} | {c['refused']} | {c['limit']} | "
+                     f"{c['crash']} | "
                      f"{_g(_median([r.estimate / r.accuracy for r in ok]))} | "
                      f"{_g(max((r.achieved / r.accuracy for r in ok), default=math.nan))} | "
                      f"{_g(_median([r.wall / r.main for r in ok if r.main > 0]), '{:.2f}')} |")
     used = {}
     for r in runs:
-        if r.solver == "auto" and r.status in ("met", "broken"):
+        if r.solver == "auto" and r.status in RETURNED:
             used[r.used] = used.get(r.used, 0) + 1
     lines += ["", "*time with / without*: wall time of the whole contract (every run it made) over that of the "
               "returned run alone. auto chose: " + ", ".join(f"`{k}` {v}" for k, v in sorted(used.items(),
@@ -736,16 +762,16 @@ def random_markdown(records, cases, machine: dict, limit: float, wall_total: flo
         for (solver, kind), seeds in sorted(ref_kinds.items(), key=lambda kv: -len(kv[1])):
             lines.append(f"| `{solver}` | {kind} | {len(seeds)} | {', '.join(sorted(set(seeds), key=int)[:8])} |")
         lines.append("")
-    bad = [r for r in runs if r.status in ("broken", "crash")]
-    lines += ["## Broken promises and crashes", ""]
+    bad = [r for r in runs if r.status in ("broken", "crash", "unresolved")]
+    lines += ["## Broken promises, unresolved verdicts and crashes", ""]
     if not bad:
         lines += ["None.", ""]
     else:
-        lines += ["| case | solver | a | estimate | achieved | worst | path | settings, reason |",
-                  "|---|---|---|---|---|---|---|---|"]
+        lines += ["| case | solver | a | verdict | estimate | achieved | worst | path | settings, reason |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for r in bad:
-            lines.append(f"| {r.case} | `{r.solver}` | {r.accuracy:.0e} | {_g(r.estimate)} | {_g(r.achieved)} | "
-                         f"{r.worst} | {r.same_path} | {r.settings} {r.reason[:120]} |")
+            lines.append(f"| {r.case} | `{r.solver}` | {r.accuracy:.0e} | {r.status} | {_g(r.estimate)} | "
+                         f"{_g(r.achieved)} | {r.worst} | {r.same_path} | {r.settings} {r.reason[:120]} |")
         lines.append("")
     res = []
     for case in cases:

@@ -62,6 +62,8 @@ IDA_OPTIONS = OptionSet(
     native=Flag("run IDA with compiled callbacks and no Python in its loop where the model allows it "
                 "(linear models and friction with laws linear in one signal; needs numba: see "
                 "regmech.solvers.ida_native; default False, solver='auto' sets it when numba is installed)"),
+    atol_rescale=Flag("repeat a run whose motion turns out small for a scalar atol, with the atol of each kind of "
+                      "state scaled to it (default True; False: one run with atol as given)"),
     **chatter_options(),
 )
 
@@ -336,15 +338,20 @@ def _blame(c, y, yp):
 @register("ida", IDA_OPTIONS)
 def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
                  max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, stiff_check=True,
-                 chatter_window=None, chatter_count=50, native=False):
+                 chatter_window=None, chatter_count=50, native=False, atol_rescale=True):
     """IDA with analytic sparse Jacobian and event handling (see module docstring).
 
     A run whose motion turns out small for the absolute tolerance is repeated
     once with the tolerances scaled to it (``_rescaled_atol``); its stats
     then count both runs and ``stats.extra["atol_rescaled"]`` says so.
+    ``atol_rescale=False`` makes the one run (the accuracy contract's first
+    run: the contract scales its own pair, ``solvers.accuracy``).
     """
     call = dict(locals())
+    rescale = call.pop("atol_rescale")
     res = _run_ida(**call)
+    if not rescale:
+        return res
     kind_atol = _rescaled_atol(res._traj.c, res._traj.Y, call["rtol"], call["atol"])
     if kind_atol is None:
         return res
