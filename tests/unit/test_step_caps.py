@@ -142,3 +142,19 @@ def test_dop853_cap_shrinks_with_rtol_as_its_steps_do():
     assert scipy_ivp.stability_cap("DOP853", 100.0, 1e-11) == pytest.approx(0.1 * cap)
     assert scipy_ivp.stability_cap("DOP853", 100.0) == cap
     assert scipy_ivp.stability_cap("RK45", 100.0, 1e-6) is None
+
+
+def test_a_stiffness_no_link_explains_is_named_by_its_mass_and_devices():
+    """Random calibration seed 78: a load regularised over 0.03 m/s on a 0.109 kg mass (a rate of 3e6 1/s) was
+    refused for DOP853 with no component named; the message names the mass and what acts on it."""
+    from regmech.components import Force, InverseSpeedDependentForce, Mass
+    m = rm.Model("regularised_load")
+    M1 = m.add(Mass("M1", m=0.109, v0=0.0))
+    load = m.add(InverseSpeedDependentForce("load1", f_nominal=228.0, v_nominal=1.566, w_eps=0.03208))
+    push = m.add(Force("push1", f=-447.1))
+    m.connect(load.flange, M1.flange_b)
+    m.connect(push.flange, M1.flange_a)
+    with pytest.raises(rm.SimulationError) as info:
+        m.simulate(0.5, 1e-3, solver="scipy:DOP853", rtol=1e-4)
+    text = str(info.value)
+    assert "'M1'" in text and "'load1'" in text and "spectral radius" in text

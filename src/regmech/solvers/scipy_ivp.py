@@ -250,7 +250,7 @@ def stability_cap(method, rho, rtol=None):
 def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps):
     """An explicit method needs h <= bound / rho: refuse up front when that takes more than max_steps (rho
     exact near the line, an upper bound far below it: ``ode_driver.spectral_radius``)."""
-    from .ode_driver import spectral_radius
+    from .ode_driver import spectral_radius, stiff_equation_hint
     # only rho > limit matters: a cheap upper bound settles the usual case (see ode_driver.spectral_radius)
     limit = max_steps * EXPLICIT_STABILITY[method] / (t_end - t0)
     rho = spectral_radius(problem, t0, u0, above=limit)
@@ -264,7 +264,7 @@ def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps):
             f"for the run, more than max_steps={max_steps}: the model is stiff for an explicit method (or the run "
             f"is long: {(t_end - t0) * rho / (2 * np.pi):.3g} periods of its fastest motion). Use 'ida', "
             f"'scipy:Radau', 'scipy:BDF' or 'convolution' for a stiff model, or raise max_steps for a long run."
-            f"{problem.c.stiffness_hint(always=True)}")
+            f"{problem.c.stiffness_hint(always=True) or stiff_equation_hint(problem, t0, u0)}")
     return rho
 
 
