@@ -163,3 +163,21 @@ def test_native_reports_ida_s_own_step_count():
     assert native.stats.extra["native"] is True
     assert native.stats.extra["steps_are_attempts"] is False and "attempts" not in str(native.stats)
     assert 10 < native.stats.steps <= usual.stats.steps <= 2 * native.stats.steps
+
+
+def test_eligibility_is_kept_with_the_compiled_model_but_a_wrapped_residual_is_seen(monkeypatch):
+    m = coupled_clutches()
+    c = m.compile()
+    calls = []
+    real = ida_native._eligible
+    monkeypatch.setattr(ida_native, "_eligible", lambda c, ls: calls.append(ls) or real(c, ls))
+    assert ida_native.eligible(c, "dense") is None and ida_native.eligible(c, "dense") is None
+    assert calls == ["dense"]
+    c.__dict__["residual"] = c.residual               # a work budget wraps the residual on the instance
+    assert "wrapped" in ida_native.eligible(c, "dense")
+    del c.__dict__["residual"]
+    laws = ida_native.friction_laws(c.friction)
+    assert ida_native.friction_laws(c.friction) is laws
+    m["clutch1"].fn_max = 2.0 * m["clutch1"].fn_max    # a change: a new compiled model, decided anew
+    assert m.compile() is not c
+    assert ida_native.eligible(m.compile(), "dense") is None and calls == ["dense", "dense"]

@@ -193,7 +193,16 @@ def signal_table(plan):
 
 def friction_laws(fr):
     """Per friction device ``(kind, parameters, fn_scale, k, peak)`` of its closed-form law
-    (``FrictionDevice.linear_law``), or a string naming the first device the kernels cannot evaluate."""
+    (``FrictionDevice.linear_law``), or a string naming the first device the kernels cannot evaluate. Kept
+    with the compiled system (``fr.c``; dropped with it on any change of the model)."""
+    kept = fr.c.__dict__
+    if "_native_friction_laws" not in kept:
+        kept["_native_friction_laws"] = _friction_laws(fr)
+    return kept["_native_friction_laws"]
+
+
+def _friction_laws(fr):
+    """``friction_laws`` computed."""
     laws = []
     for j, dev in enumerate(fr.devices):
         what = f"{type(dev).__name__} '{dev.name}'"
@@ -219,7 +228,21 @@ def friction_laws(fr):
 
 
 def eligible(c, linsolver, deadline=None):
-    """None when the native path can run compiled system ``c`` with ``linsolver``, else the reason."""
+    """None when the native path can run compiled system ``c`` with ``linsolver``, else the reason. What the
+    compiled system decides is kept with it (0.1 ms a run of CoupledClutches, three times per default call);
+    a residual wrapped on it since (a work budget) is checked at every call."""
+    kept = c.__dict__.setdefault("_native_eligible", {})
+    if linsolver not in kept:
+        kept[linsolver] = _eligible(c, linsolver)
+    if kept[linsolver] is not None:
+        return kept[linsolver]
+    if "residual" in c.__dict__:
+        return "the residual is wrapped on the compiled system (a work budget counts its calls in Python)"
+    return None
+
+
+def _eligible(c, linsolver):
+    """``eligible`` computed, but for a wrapped residual."""
     plan = c._plan
     if getattr(c, "n_surf", 0):
         return "switching surfaces of piecewise laws (contacts located as events in Python)"
@@ -231,8 +254,6 @@ def eligible(c, linsolver, deadline=None):
         return "Position/Speed sources (their references)"
     if linsolver not in ("dense", "band"):
         return f"linear solver '{linsolver}' (the native path has dense and band)"
-    if "residual" in c.__dict__:
-        return "the residual is wrapped on the compiled system (a work budget counts its calls in Python)"
     lib = libraries()            # numba first: the signal table needs the kernels' constants
     if isinstance(lib, str):
         return lib
