@@ -39,6 +39,15 @@ bound 1e3 r. The fastest peer
 is taken among the peers within the same bound. A target is met when the
 time ratio is within it and regmech's error is within the bound.
 
+The ODE-form rows compare regmech's ``scipy:DOP853`` with the same method by
+hand. At the same rtol the two do not do the same work: regmech caps
+DOP853's step below its stability limit, more tightly the tighter rtol
+(``scipy_ivp.stability_cap``, session 11), and is 3 to 20 times more
+accurate there on the chains. The judged row therefore runs regmech at
+``ODE_LOOSER`` times rtol, whose error is at most the hand run's (checked
+per row; the row says so when it is not): the driver's cost at matched
+accuracy. The row at equal rtol is kept for reading.
+
 The chain of 100,000 inertias is run end to end (build, compile, 1 s at
 rtol 1e-6 with ida, every inertia's speed read by name) in a subprocess:
 wall time and peak memory (the process's own high-water mark, ``VmHWM``; ``ru_maxrss`` keeps the parent's peak across fork and exec).
@@ -169,11 +178,18 @@ class Tool:
         return statistics.median(self.cpu) if self.cpu and not self.failed else None
 
 
+#: the judged ODE-form row runs regmech's DOP853 at this many times the row's rtol (module docstring): measured on
+#: the chains of 100 to 10,000 inertias at rtol 1e-6 and 1e-9, regmech at 3 r was within the hand run's error at r in
+#: every case (chain1000 at 1e-6: 2.4e-6 against 9.8e-6; chain100 at 1e-9: 5.0e-9 against 5.5e-9)
+ODE_LOOSER = 3.0
+
+
 def regmech_tools(case: Case, rtol: float, budget: float) -> list[Tool]:
     acc = error_bound(rtol)
     configs = [("regmech default (auto)", {} if acc == 1e-3 else {"accuracy": acc}),
                ("regmech ida", {"solver": "ida", "rtol": rtol}),
-               ("regmech scipy:DOP853", {"solver": "scipy:DOP853", "rtol": rtol})]
+               ("regmech scipy:DOP853", {"solver": "scipy:DOP853", "rtol": rtol}),
+               (f"regmech scipy:DOP853 at {ODE_LOOSER:g} rtol", {"solver": "scipy:DOP853", "rtol": ODE_LOOSER * rtol})]
     if case.linear:
         configs.append(("regmech expm", {"solver": "expm", "accuracy": acc}))
     # the native IDA path (numba kernels; linear models and friction models whose laws are linear in one signal),
@@ -428,20 +444,28 @@ def target_rows(case: Case, rtol: float, tools: list[Tool]) -> list[list[str]]:
         row(best, hand, "hand-written scipy", 1.0, " (best)")
         if cas is not None:
             row(best, cas, "CasADi", None, " (best)")
-    ode = next((t for t in tools if t.label == "regmech scipy:DOP853"), None)
     hand_dop = next((t for t in tools if t.label == "scipy DOP853"), None)
-    if ode is not None and hand_dop is not None and not hand_dop.failed:
-        tgt = 1.3 if case.key in ("chain1000", "chain10000") else None
-        if ode.failed:
-            rows.append([case.key, f"{rtol:g}", "regmech scipy:DOP853 (ODE-form path)", short(ode.failed), "-",
-                         "scipy DOP853 by hand", fmt_ms(hand_dop.median()), "-", "-", f"<= {tgt:g}x" if tgt else "-",
-                         "not met" if tgt else "-"])
-        else:
+    if hand_dop is not None and not hand_dop.failed:
+        for label, judged in (("regmech scipy:DOP853", False), (f"regmech scipy:DOP853 at {ODE_LOOSER:g} rtol", True)):
+            ode = next((t for t in tools if t.label == label), None)
+            if ode is None:
+                continue
+            tgt = 1.3 if judged and case.key in ("chain1000", "chain10000") else None
+            name = (f"regmech scipy:DOP853 at rtol {ODE_LOOSER:g} r (ODE-form path, matched error)" if judged else
+                    "regmech scipy:DOP853 (ODE-form path, same rtol)")
+            if ode.failed:
+                rows.append([case.key, f"{rtol:g}", name, short(ode.failed), "-", "scipy DOP853 by hand",
+                             fmt_ms(hand_dop.median()), "-", "-", f"<= {tgt:g}x" if tgt else "-",
+                             "not met" if tgt else "-"])
+                continue
             ratio = ode.median() / hand_dop.median()
             cpu = (f"{ode.cpu_median() / hand_dop.cpu_median():.2f}x" if ode.cpu_median() and hand_dop.cpu_median()
                    else "-")
-            rows.append([case.key, f"{rtol:g}", "regmech scipy:DOP853 (ODE-form path)", fmt_ms(ode.median()),
-                         fmt_err(ode.error), "scipy DOP853 by hand",
+            matched = ode.error is not None and hand_dop.error is not None and ode.error <= hand_dop.error
+            if judged and not matched:
+                name += ": its error above the hand run's, not judged"
+                tgt = None
+            rows.append([case.key, f"{rtol:g}", name, fmt_ms(ode.median()), fmt_err(ode.error), "scipy DOP853 by hand",
                          f"{fmt_ms(hand_dop.median())} ({fmt_err(hand_dop.error)})", f"{ratio:.2f}x", cpu,
                          f"<= {tgt:g}x" if tgt else "-",
                          ("met" if ratio <= tgt else "**not met**") if tgt else "-"])

@@ -37,7 +37,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 WP_DIR = RESULTS / "wp"
-SECTIONS = ["peers.md", "fuzz.md", "calibration.md", "calibration_subset.md", "calibration_random.md", "auto_rules.md", "foundation.md",
+SECTIONS = ["peers.md", "fuzz.md", "calibration.md", "calibration_random.md", "auto_rules.md", "foundation.md",
             "work_precision.md", "hard_cases.md", "solvers_ode.md", "ida_overhead.md", "ode_path.md", "big_chain.md",
             "linsolver.md", "expm.md", "rigid_chain.md", "modal.md", "sweep.md"]
 PICK_BEGIN, PICK_END = "<!-- which-solver:begin -->", "<!-- which-solver:end -->"
