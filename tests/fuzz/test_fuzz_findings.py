@@ -963,3 +963,56 @@ def test_ida_pair_whose_errors_cancel_is_not_taken_at_its_word():
     labels = result_state_labels(m.compile())
     err = compare_runs(res, ref, labels, output_grid(0.0, t_end, dt_out)).value
     assert err <= res.stats.error_estimate <= 1e-4, (err, res.stats.error_estimate)
+
+
+def _campaign_seed_80041():
+    """Fuzz seed 80041 (session 11's campaign): a lossy gear that ends up held at zero speed."""
+    from regmech.components import Brake, LimitedSlipDifferential, LossyPlanetary, OneWayClutch, ThermalMass
+    m = rm.Model("seed80041")
+    J1 = m.add(Inertia("J1", J=0.02882, w0=0.0))
+    drive1 = m.add(Torque("drive1", tau=Sine(amplitude=36.92, freq_hz=1.927, phase=2.98, offset=-98.87,
+                                                 start_time=0.0)))
+    owc1 = m.add(OneWayClutch("owc1", mu=0.6392, peak=1.594, cgeo=0.05161, fn_max=16260.0,
+                              f_normalized=Sine(amplitude=0.2286, freq_hz=0.9102, phase=1.75, offset=0.562,
+                                                start_time=0.0)))
+    J2 = m.add(Inertia("J2", J=0.1297, w0=59.08))
+    J3 = m.add(Inertia("J3", J=0.7086))
+    lgear1 = m.add(LossyGear("lgear1", ratio=0.2102, loss_table=[[0.0, 0.5117, 0.6752, 8.621, 26.32]]))
+    brake1 = m.add(Brake("brake1", mu=0.4687, peak=1.426, cgeo=0.1939, fn_max=2403.0, f_normalized=0.8962,
+                         thermal=ThermalMass(C=0.2528, G=0.004791, fade=[(293.15, 1.0), (321.2, 0.4139)])))
+    lsd1 = m.add(LimitedSlipDifferential("lsd1", ratio=1.0, preload=3173.0, mu=0.254, cgeo=0.05, peak=1.01,
+                                         J_side=0.005413))
+    lplanet1 = m.add(LossyPlanetary("lplanet1", ratio=2.962, loss_table=[[0.0, 0.8657, 0.5775, 0.0, 0.0]]))
+    J4 = m.add(Inertia("J4", J=1.446))
+    J5 = m.add(Inertia("J5", J=0.1263))
+    drive2 = m.add(Torque("drive2", tau=Ramp(height=-314.3, duration=0.3868, start_time=0.3328, offset=140.9)))
+    m.connect(drive1.flange, J1.flange_b)
+    m.connect(owc1.flange_a, J1.flange_b)
+    m.connect(owc1.flange_b, J2.flange_a)
+    m.connect(lgear1.flange_a, J3.flange_b)
+    m.connect(lgear1.flange_b, J2.flange_b)
+    m.connect(brake1.flange, J1.flange_b)
+    m.connect(lsd1.carrier, J2.flange_b)
+    m.connect(lplanet1.carrier, J3.flange_a)
+    m.connect(lplanet1.ring, J4.flange_b)
+    m.connect(lplanet1.sun, J5.flange_b)
+    m.connect(drive2.flange, J4.flange_b)
+    m.connect(drive2.support, J1.flange_a)
+    return m
+
+
+def test_a_guard_crossing_at_round_off_without_mode_changes_stops_ida_and_auto_falls_back():
+    """Fuzz seed 80041: a lossy gear held at zero speed crossed its event function at round-off 1,762 times in
+    0.2 ms of simulated time (10 s of computing at rtol 1e-8, no mode changing), IDA restarting at each; the
+    default call ran past the campaign's 60 s. Now IDA stops after 200 such crossings naming the gear
+    (``ChatterGuard.record_silent``), and the default call falls back to Radau within the accuracy."""
+    m = _campaign_seed_80041()
+    t_end, dt_out = 1.181, 0.0029525
+    with pytest.raises(rm.ChatteringError, match="'lgear1' crossed zero"):
+        m.simulate(t_end, dt_out, solver="ida", rtol=1e-8, timeout_s=60)
+    res = m.simulate(t_end, dt_out, timeout_s=60)
+    assert res.stats.solver == "scipy:Radau" and "'ida' refused" in res.stats.extra["auto_reason"]
+    ref = m.simulate(t_end, dt_out, solver="scipy:DOP853", rtol=1e-11, atol=1e-13)
+    from regmech.solvers.accuracy import compare_runs, result_state_labels
+    err = compare_runs(res, ref, result_state_labels(m.compile()), output_grid(0.0, t_end, dt_out)).value
+    assert err <= 1e-3

@@ -6,6 +6,11 @@ from collections import deque
 
 from ..errors import ChatteringError
 
+#: silent event-function crossings (no mode change) of one device a run may take (``ChatterGuard.record_silent``)
+SILENT_MIN = 200
+#: ... and no more than this many per mode change of the run
+SILENT_PER_CHANGE = 20
+
 
 class ChatterGuard:
     """Stops a run when one device changes mode ``count`` times within ``window`` seconds.
@@ -18,8 +23,26 @@ class ChatterGuard:
     def __init__(self, window: float, count: int):
         self.window, self.count = window, count
         self.log: dict[str, deque[float]] = {}
+        self.changes = 0                      # mode changes recorded over the run
+        self.silent: dict[str, int] = {}      # event-function crossings that changed no mode, per device
+
+    def record_silent(self, t: float, name: str) -> None:
+        """An event function of device ``name`` crossed zero and the mode logic changed nothing: the solver
+        restarts there. More than ``SILENT_MIN`` of them for one device (and over ``SILENT_PER_CHANGE`` per mode
+        change of the run) stop the run: its guard crosses at round-off and the run crawls from restart to
+        restart. Fuzz seed 80041: a lossy gear held at zero speed restarted IDA 1,762 times between 0.02610 and
+        0.02632 s (10 s of computing at rtol 1e-8), while DOP853 took the whole 1.18 s run in 0.15 s."""
+        n = self.silent[name] = self.silent.get(name, 0) + 1
+        if n > max(SILENT_MIN, SILENT_PER_CHANGE * self.changes):
+            raise ChatteringError(
+                f"the event function of friction device '{name}' crossed zero {n} times without a change of mode "
+                f"(last at t={t:.9g} s; {self.changes} mode changes in the run): it crosses at round-off and the "
+                f"solver restarts at every crossing, so the run would crawl. Use solver='scipy:DOP853' or "
+                f"'scipy:Radau' (they locate the device's events on their own steps), or add compliance or damping "
+                f"next to it (an elastic shaft).")
 
     def record(self, t: float, name: str) -> None:
+        self.changes += 1
         times = self.log.setdefault(name, deque())
         times.append(t)
         while times and times[0] < t - self.window:
