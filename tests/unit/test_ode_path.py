@@ -204,3 +204,19 @@ def test_spectral_radius_of_the_linear_form_is_kept_with_the_compiled_model(monk
     c2 = m.compile()
     problem2, u2 = start(c2)
     assert od.spectral_radius(problem2, 0.0, u2, above=1e9) > rho and len(calls) == 2
+
+
+def test_a_non_finite_deferred_acceleration_is_refused_naming_its_coordinate(monkeypatch):
+    m = chain(3, drive=Step(height=1.0, start_time=0.1))
+    res = m.simulate(0.3, 0.01, solver="scipy:DOP853", rtol=1e-8)
+    form = ode_form(m.compile())
+    n = form.n
+    name = m.compile().structure.coord_names[1]
+
+    def overflowing(t, u, left=None):
+        g = np.zeros(form.size)
+        g[n + 1] = np.inf
+        return g
+    monkeypatch.setattr(form, "rhs", overflowing)
+    with pytest.raises(rm.SimulationError, match=f"acceleration of '{name}' became non-finite"):
+        res[f"{name}.a"]

@@ -280,3 +280,21 @@ def test_locate_crossing_returns_the_crossed_side():
     b = locate_crossing(f, 0.0, 0.3, f(0.0), f(0.3))
     assert f(b) <= 0.0
     assert abs(b - root) < 1e-14
+
+
+def test_silent_crossings_are_counted_per_device_and_stop_the_run():
+    """``ChatterGuard.record_settle``: a mode change is recorded as such; an event that changed nothing counts a
+    silent crossing for each device whose event function crossed (two functions per device), and one device's
+    201st stops the run naming it (fuzz seed 80041)."""
+    from types import SimpleNamespace
+    from regmech.errors import ChatteringError
+    from regmech.hybrid.chatter import SILENT_MIN, ChatterGuard
+    devices = [SimpleNamespace(name="clutch"), SimpleNamespace(name="gear")]
+    guard = ChatterGuard(1e-6, 50)
+    guard.record_settle(0.0, [("clutch", 0, 1, "mode")], np.array([1, 0, 0, 0]), devices)
+    assert guard.changes == 1 and guard.silent == {}
+    for k in range(SILENT_MIN):
+        guard.record_settle(0.01 + k * 1e-3, [], np.array([0, 0, 0, -1]), devices)
+    assert guard.silent == {"gear": SILENT_MIN}
+    with pytest.raises(ChatteringError, match="'gear' crossed zero 201 times without a change of mode"):
+        guard.record_settle(0.5, [], np.array([0, 0, 1, 0]), devices)

@@ -295,6 +295,10 @@ def run_cell(case: CalCase, ref: Reference, solver: str, accuracy: float, limit:
 
 #: the outcomes of a returned run
 RETURNED = ("met", "broken", "unresolved")
+#: every outcome (the columns of the reports)
+OUTCOMES = RETURNED + ("refused", "limit", "crash")
+#: the outcomes the reports list run by run
+LISTED = ("broken", "crash", "unresolved")
 
 
 def verdict(achieved: float, accuracy: float, resolution: float) -> str:
@@ -417,7 +421,7 @@ def summary_rows(records, solvers=SOLVERS):
         ok = [r for r in rs if r.status in RETURNED]
         rows.append({
             "solver": s, "runs": len(rs), **{k: sum(r.status == k for r in rs)
-                                              for k in ("met", "broken", "unresolved", "refused", "limit", "crash")},
+                                              for k in OUTCOMES},
             "est_over_acc": _median([r.estimate / r.accuracy for r in ok]),
             "achieved_over_acc_max": max((r.achieved / r.accuracy for r in ok), default=math.nan),
             # only where the error is not round-off: achieved and estimate near 1e-15 say nothing of the estimate
@@ -539,7 +543,7 @@ def calibration_markdown(records, cases, refs, machine: dict, limit: float, wall
         ref = refs.get(case.key)
         if ref is not None:
             lines.append(f"| {case.key} | {case.group} | {ref.method} | {_g(ref.resolution)} |")
-    broken = [r for r in records if r.status in ("broken", "crash", "unresolved")]
+    broken = [r for r in records if r.status in LISTED]
     if broken:
         lines += ["", "## Broken promises, unresolved verdicts and crashes", "",
                   "| case | solver | a | verdict | estimate | achieved | worst | path | settings |",
@@ -737,7 +741,7 @@ def random_markdown(records, cases, machine: dict, limit: float, wall_total: flo
         if not rs:
             continue
         ok = [r for r in rs if r.status in RETURNED]
-        c = {k: sum(r.status == k for r in rs) for k in ("met", "broken", "unresolved", "refused", "limit", "crash")}
+        c = {k: sum(r.status == k for r in rs) for k in OUTCOMES}
         lines.append(f"| `{solver}`{' (default call)' if solver == 'auto' and acc == 1e-3 else ''} | {acc:.0e} | "
                      f"{len(rs)} | {c['met']} | **{c['broken']}** | {c['unresolved']} | {c['refused']} | {c['limit']} | "
                      f"{c['crash']} | "
@@ -762,7 +766,7 @@ def random_markdown(records, cases, machine: dict, limit: float, wall_total: flo
         for (solver, kind), seeds in sorted(ref_kinds.items(), key=lambda kv: -len(kv[1])):
             lines.append(f"| `{solver}` | {kind} | {len(seeds)} | {', '.join(sorted(set(seeds), key=int)[:8])} |")
         lines.append("")
-    bad = [r for r in runs if r.status in ("broken", "crash", "unresolved")]
+    bad = [r for r in runs if r.status in LISTED]
     lines += ["## Broken promises, unresolved verdicts and crashes", ""]
     if not bad:
         lines += ["None.", ""]

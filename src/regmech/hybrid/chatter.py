@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections import deque
 
+import numpy as np
+
 from ..errors import ChatteringError
 
 #: silent event-function crossings (no mode change) of one device a run may take (``ChatterGuard.record_silent``)
@@ -40,6 +42,17 @@ class ChatterGuard:
                 f"solver restarts at every crossing, so the run would crawl. Use solver='scipy:DOP853' or "
                 f"'scipy:Radau' (they locate the device's events on their own steps), or add compliance or damping "
                 f"next to it (an elastic shaft).")
+
+    def record_settle(self, t: float, changes, crossed, devices) -> None:
+        """What the mode logic did at an event: each change (``record``), or, when it changed nothing, each
+        device whose event function crossed (``crossed``: the friction part of the crossed flags, two per device,
+        ``hybrid.events``) as a silent crossing (``record_silent``)."""
+        for name, *_ in changes:
+            self.record(t, name)
+        if not changes and crossed is not None:
+            for j in sorted({int(i) // 2 for i in np.nonzero(np.asarray(crossed))[0]}):
+                if j < len(devices):
+                    self.record_silent(t, devices[j].name)
 
     def record(self, t: float, name: str) -> None:
         self.changes += 1

@@ -467,11 +467,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 y, yp, new_modes, changes = fr.settle(t_ev, (y_ev, yp_ev), modes, crossed=f_crossed)
                 for (name, old, new, kind, *value) in changes:
                     events.append(Event(t_ev, name, old, new, kind, value=value[0] if value else None))
-                    guard.record(t_ev, name)
-                if not changes:         # a crossing that changed nothing: IDA restarts there all the same
-                    for j in sorted({int(i) // 2 for i in np.nonzero(np.asarray(f_crossed))[0]}):
-                        if j < len(fr.devices):
-                            guard.record_silent(t_ev, fr.devices[j].name)
+                # a crossing that changed nothing restarts IDA all the same: counted as silent
+                guard.record_settle(t_ev, changes, f_crossed, fr.devices)
                 modes = new_modes
                 rec.add(t_ev, y, yp, modes)
             else:

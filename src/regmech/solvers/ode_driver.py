@@ -487,9 +487,14 @@ class _Sink:
                 u = np.concatenate([y[c._sx], y[c._sv], y[c._sz]])
                 g = form.rhs(t, u, left)
                 if not np.all(np.isfinite(g)):
-                    raise SimulationError(f"the solution's accelerations became non-finite (NaN/inf) at t={t:.6g} "
-                                          f"in model '{c.model.name}'; the model or the solver settings are "
-                                          f"unstable there (try a tighter tolerance or a stable solver)")
+                    bad = int(np.argmax(~np.isfinite(g)))
+                    what = (f"'{c.structure.coord_names[bad - n]}'" if n <= bad < 2 * n else
+                            f"'{c.state_names[bad - 2 * n]}'" if bad >= 2 * n else f"'{c.structure.coord_names[bad]}'")
+                    raise SimulationError(
+                        f"the acceleration of {what} became non-finite (NaN/inf) at t={t:.6g} in model "
+                        f"'{c.model.name}' while the states stayed finite: a law or a signal acting on it overflows "
+                        f"there. Check that component's parameters and signals, or try a tighter tolerance or "
+                        f"'ida'.")
                 yp = YP[k]
                 yp[c._sx], yp[c._sv], yp[c._sz] = u[n:2 * n], g[n:2 * n], g[2 * n:]
             return YP
@@ -1151,7 +1156,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         y, yp, new_modes, changes = fr.settle(t, state, modes, crossed=crossed)
         for (comp, old, new, kind, *value) in changes:
             events.append(Event(t, comp, old, new, kind, value=value[0] if value else None))
-            guard.record(t, comp)
+        guard.record_settle(t, changes, crossed, fr.devices)     # a crossing that changed nothing: silent
         if changes:
             growth.mode_change()
         return y, yp, new_modes
