@@ -409,3 +409,16 @@ def test_adaptive_estimate_is_twice_the_pairs_difference():
     assert len(runs) == 2 and res is runs[1] and PAIR_FACTOR == 2.0
     diff = compare_runs(runs[0], runs[1], result_state_labels(m.compile()), output_grid(0.0, 5.0, 0.01)).value
     assert res.stats.error_estimate == pytest.approx(PAIR_FACTOR * diff, rel=1e-12)
+
+
+def test_magnitude_ratio_leaves_out_kinds_at_rest():
+    """``magnitude_ratio``: the largest magnitude of a state over the range of its kind, for kinds that move;
+    a kind at rest (its range at the measure's floor) is left out, and the ratio is never below 1."""
+    from regmech.solvers.accuracy import magnitude_ratio
+    from regmech.solvers.richardson import StateLabel
+    labels = [StateLabel("M.v", "M", "v"), StateLabel("J.w", "J", "w"), StateLabel("J.phi", "J", "phi")]
+    t = np.linspace(0.0, 1.0, 11)
+    values = np.column_stack([5.8 + 0.0036 * t, 0.5 * np.sin(t), np.full_like(t, 3.0)])
+    q, signal = magnitude_ratio(labels, values)
+    assert signal == "M.v" and q == pytest.approx(5.8036 / 0.0036)
+    assert magnitude_ratio(labels[1:], values[:, 1:]) == (1.0, "")      # J.phi at rest: left out
