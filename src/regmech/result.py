@@ -121,6 +121,8 @@ class Stats:
                                      for k, v in (x.get("settings") or {}).items())
                 est += (f" <= accuracy {x['accuracy']:g}{where}; {settings}; {x.get('attempts', 1)} attempt(s), "
                         f"estimate {x.get('estimate_time', 0.0) * 1e3:.1f} ms")
+                if x.get("rtol_cap"):
+                    est += f"; {x['rtol_cap']}"
                 if x.get("event_time_error") is not None:
                     est += f"; switch times +-{x['event_time_error']:.2g} s"
         auto = f" [auto: {self.extra['auto_reason']}]" if self.extra.get("auto_reason") else ""

@@ -55,7 +55,7 @@ How it is estimated, per family of solver:
   error is then left to the steps, not to the tolerance: the tight rtol is
   capped at ``MAGNITUDE_REACH * accuracy / ratio`` (``magnitude_ratio``,
   kinds at rest left out) and the first run is made again at the cap
-  (``settings["rtol_cap"]`` names the state). When the estimate exceeds the
+  (``stats.extra["rtol_cap"]`` names the state). When the estimate exceeds the
   accuracy, ``r`` is scaled by ``SAFETY * accuracy / estimate`` (when that
   is no tighter than ``r / TIGHTEN``, the tight run becomes the loose run of
   the next pair and only one new run is made), at most ``MAX_ATTEMPTS``
@@ -88,6 +88,7 @@ meet the accuracy.
 ``accuracy``, ``attempts``, ``estimate_time`` (time of every run but the
 returned one), ``settings`` (rtol/atol or h the run ended with),
 ``error_method``, ``error_floor`` (the round-off bound, with links),
+``rtol_cap`` (the state that capped the rtol, when one did),
 ``event_time_error`` (with events); ``wall_time`` counts every run,
 ``extra["wall_time_main"]`` the returned one alone.
 """
@@ -530,8 +531,6 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
             loose = run(r)
             v_loose = states(loose)
     settings = {"rtol": r_tight}
-    if capped:
-        settings["rtol_cap"] = capped
     at = atol_ratio * r_tight
     settings["atol"] = float(at) if np.ndim(at) == 0 else float(np.max(at))
     looser = (f"rtol={r:.3g} ({TIGHTEN:g} times looser)" if loose_atol is None else
@@ -540,6 +539,8 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
             f"{PAIR_FACTOR:g} times the difference from a run at {looser}, a conservative bound under tolerance "
             f"proportionality")
     _record_events(tight, ev)
+    if capped:
+        tight.stats.extra["rtol_cap"] = capped
     return tight
 
 
