@@ -266,7 +266,9 @@ def test_stable_where_rk4_diverges_on_the_excavator(excavator):
     diverges'. At h = 0.1 s (rk4 and the paper's single-pass corrector are stable up to 0.057 s and 0.026 s,
     benchmarks/results/solvers_ode.md) the implicit corrector completes within 5 % of the speed reached."""
     m, ref = excavator
-    with pytest.raises(rm.SimulationError, match="solver 'rk4' diverged"):
+    # (refused as it diverges, or before a short segment's steps as it would: which test sees it first depends
+    # on where rk4 locates the backlashes' contacts)
+    with pytest.raises(rm.SimulationError, match="solver 'rk4' (diverged|would diverge)"):
         m.simulate(3.0, dt_out=0.1, solver="rk4", h=0.1)
     with pytest.raises(rm.SimulationError, match="corrector='implicit'"):
         m.simulate(3.0, dt_out=0.1, solver="convolution", h=0.1, corrector="pece")

@@ -241,8 +241,10 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
     start_state = _mutable_state(c.friction) if c.friction else None
     times = _probe_times(model, t_start, t_end, dt_out) if tol is not None else None
     main_probe = GridProbe(times) if tol is not None else None
-    res = simulate_ode(model, name, make_stepper(KnotClock, False), t_start, t_end, dt_out, probe=main_probe,
-                       **driver)
+    # a segment's first interval: an even step count before even ones (``step_counts``), with or without a
+    # companion to come (the answer does not depend on whether it is checked)
+    res = simulate_ode(model, name, make_stepper(functools.partial(KnotClock, even_start=True), False), t_start,
+                       t_end, dt_out, probe=main_probe, **driver)
     if after_main is not None:
         after_main(res)
     if tol is None:
@@ -253,9 +255,9 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
     def companion(factor):
         probe = GridProbe(times)
         if factor < 1:      # steps of h/2: every instant of the main run is hit
-            clock = functools.partial(KnotClock, parts=round(1 / factor))
+            clock = functools.partial(KnotClock, parts=round(1 / factor), even_start=True)
         else:
-            clock = functools.partial(GroupedKnotClock, factor=factor)
+            clock = functools.partial(GroupedKnotClock, factor=factor, even_start=True)
         with _Isolated(c, start_state):
             stats = simulate_ode(model, name, make_stepper(clock, True), t_start, t_end, dt_out, probe=probe,
                                  record=False, **driver)
