@@ -1076,3 +1076,29 @@ def test_default_call_holds_the_tolerance_of_a_state_far_larger_than_its_motion(
     err = compare_runs(res, ref, result_state_labels(m.compile()), output_grid(0.0, t_end, dt_out))
     assert err.value <= res.stats.error_estimate <= 1e-3, (err, res.stats.error_estimate)   # was 5.4e-3 > 9.9e-4
     assert "M1.v" in res.stats.extra["rtol_cap"] and "rtol capped for M1.v" in str(res.stats)
+
+
+def test_a_limited_dampers_saturation_is_located_so_errors_follow_the_tolerance():
+    """Random calibration seed 171: an end stop (c = 1.96e5, d = 11.8) rattling 93 times. Each impact starts with
+    the damper saturated (tau = 2 tau_c) and the torque has a kink where it lets go of the limit; a step across the
+    kink integrated the other branch. DOP853's errors were 0.048, 0.029 and 0.0025 of the range at rtol 1e-5,
+    1e-6 and 1e-7, and at accuracy 1e-2 its pair (5.5e-6 / 5.5e-7) estimated 7.1e-3 for an error of 0.015. The kink
+    is a switching surface now (``stops.damper_saturation``): 5.7e-4, 4.4e-5, 2.3e-6, and the contract holds."""
+    from regmech.components import EndStop
+    from regmech.solvers.accuracy import compare_runs, result_state_labels
+    m = rm.Model("seed171")
+    J1 = m.add(Inertia("J1", J=0.2436))
+    stop1 = m.add(EndStop("stop1", lower=-0.08703, upper=-0.03494, c=196400.0, d=11.78, domain="rotational"))
+    drive1 = m.add(Torque("drive1", tau=Step(height=5.505, start_time=0.7169, offset=-7.642)))
+    m.connect(stop1.flange, J1.flange_a)
+    m.connect(drive1.flange, J1.flange_b)
+    t_end, dt_out = 1.207, 0.00011134686346863469
+    ref = m.simulate(t_end, dt_out, solver="scipy:DOP853", rtol=1e-12, atol=1e-14)
+    labels, grid = result_state_labels(m.compile()), output_grid(0.0, t_end, dt_out)
+    err = [compare_runs(m.simulate(t_end, dt_out, solver="scipy:DOP853", rtol=rt), ref, labels, grid).value
+           for rt in (1e-5, 1e-6, 1e-7)]
+    assert err[0] < 2e-3 and err[0] > 5 * err[1] > 25 * err[2], err       # was 0.048, 0.029, 0.0025
+    assert sum(e.kind == "contact" for e in ref.events) == 93          # the kink makes no event
+    res = m.simulate(t_end, dt_out, solver="scipy:DOP853", accuracy=1e-2)
+    achieved = compare_runs(res, ref, labels, grid).value
+    assert achieved <= res.stats.error_estimate <= 1e-2, (achieved, res.stats.error_estimate)

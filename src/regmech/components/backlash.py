@@ -38,6 +38,22 @@ def _smaller(a, b):
     return (a + b - sympy.Abs(a - b)) / 2
 
 
+def damper_saturation(contact, spare):
+    """The surface of a limited damper's kink within a contact: ``min(contact, spare)``, with ``contact`` the
+    contact's own surface (> 0 in contact) and ``spare`` [m or rad] ``(|tau_c| - |tau_d|) / c`` on the damper's
+    limited side (> 0 while the damping torque is below the spring torque it is limited by). Positive in contact
+    with the damper free, negative in contact with it saturated (``tau = 2 tau_c``) and when open; stated with the
+    contact's code, after it, so the contact state it gives is the contact's.
+
+    Why: the torque has a kink where the damper saturates (each impact starts saturated: ``tau_c = 0`` at touch).
+    A step across it integrates the other branch's law, and the solvers' error estimates do not see a kink
+    between their stages: on fuzz seed 171 (an end stop, c = 1.96e5, d = 11.8, 93 bounces) DOP853's errors were
+    0.048, 0.029, 0.0025 of the range at rtol 1e-5, 1e-6, 1e-7 (its pair at 5.5e-6 / 5.5e-7 differed by less
+    than the error); with the kink located 5.7e-4, 4.4e-5, 2.3e-6. Crossing it changes no contact state, so it
+    makes no ``Event``; the integration restarts there."""
+    return _smaller(contact, spare)
+
+
 def _play_surfaces(phi_diff, b, pos=None, neg=None):
     """The contact surfaces of a play of total width ``b`` centred at 0: ``[(g, +1), (g, -1)]`` with
     ``g+ = phi_diff - b/2`` and ``g- = -phi_diff - b/2`` (> 0 in contact on that side); ``pos``/``neg``
@@ -145,7 +161,10 @@ class ElastoBacklash(TwoFlangeCompliant):
         w = de[0]
         pos = _smaller(phi_diff - b_half, phi_diff - b_half + self.d * w / self.c)
         neg = _smaller(-phi_diff - b_half, -(phi_diff + b_half) - self.d * w / self.c)
-        return _play_surfaces(phi_diff, self.b, pos, neg)
+        # then the damper's saturation within each contact (``stops.damper_saturation``: tau_d = tau_c)
+        return _play_surfaces(phi_diff, self.b, pos, neg) + [
+            (damper_saturation(pos, phi_diff - b_half - self.d * w / self.c), 1),
+            (damper_saturation(neg, -(phi_diff + b_half) + self.d * w / self.c), -1)]
 
     def switching_active(self):
         return self.b > B_EPS          # a plain spring-damper below it

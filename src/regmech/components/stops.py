@@ -37,13 +37,9 @@ from ..component import Device, Param, Subsystem
 from ..errors import ParameterError
 from ..modes import FREE
 from ..ports import TRANSLATIONAL
+from .backlash import _smaller, damper_saturation
 from .friction import FrictionContact, FrictionDevice
 from .inertial import Fixed, Mass
-
-
-def _smaller(a, b):
-    """``min(a, b)`` as arithmetic (the kernels' numpy printer has no elementwise Min)."""
-    return (a + b - sympy.Abs(a - b)) / 2
 
 
 def _limited(tau_c, tau_d, pushing_up: bool):
@@ -93,11 +89,13 @@ class EndStop(Device):
     def switching_surfaces(self, e, de):
         """Contact at the upper stop (code +1) and at the lower one (-1): in touch and pushing,
         ``g_upper = min(phi_rel - upper, (tau_c + d w_rel) / c)`` (the limited damper lets go where the
-        sum reaches 0 while still in touch), the mirror image at ``lower``."""
+        sum reaches 0 while still in touch), the mirror image at ``lower``; then the damper's saturation
+        within each contact (``damper_saturation``: ``d w_rel = tau_c``)."""
         rel, w = e[0], de[0]
         up = _smaller(rel - self.upper, rel - self.upper + self.d * w / self.c)
         lo = _smaller(self.lower - rel, self.lower - rel - self.d * w / self.c)
-        return [(up, 1), (lo, -1)]
+        return [(up, 1), (lo, -1), (damper_saturation(up, rel - self.upper - self.d * w / self.c), 1),
+                (damper_saturation(lo, self.lower - rel + self.d * w / self.c), -1)]
 
     def potential(self, e):
         rel = e[0]
@@ -134,9 +132,11 @@ class ElastoGap(Device):
 
     def switching_surfaces(self, e, de):
         """Contact (code +1): the gap closed and the contact force pushing,
-        ``g = min(phi_rel0 - phi_rel, -(tau_c + d w_rel) / c)``."""
+        ``g = min(phi_rel0 - phi_rel, -(tau_c + d w_rel) / c)``; then the damper's saturation within the
+        contact (``damper_saturation``: ``d w_rel = tau_c``)."""
         rel, w = e[0], de[0]
-        return [(_smaller(self.phi_rel0 - rel, self.phi_rel0 - rel - self.d * w / self.c), 1)]
+        contact = _smaller(self.phi_rel0 - rel, self.phi_rel0 - rel - self.d * w / self.c)
+        return [(contact, 1), (damper_saturation(contact, self.phi_rel0 - rel + self.d * w / self.c), 1)]
 
 
 class MassWithStopAndFriction(Subsystem):
