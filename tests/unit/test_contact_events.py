@@ -162,3 +162,28 @@ def test_energy_books_of_a_rattling_backlash_close(solver, dt_out):
     assert len(_contacts(res)) > 20
     findings = energy_checks(res, m, rel=1e-6)
     assert not findings, [str(f) for f in findings]
+
+
+def test_a_surface_reached_at_another_events_instant_is_an_event_not_a_silent_flip():
+    """``SurfaceSet.begin`` takes the sides of a new segment from the surfaces' signs. A surface that reached zero
+    at the instant of another event (a friction event, a breakpoint, a twin surface's crossing) starts the next
+    segment a round-off past it: its device's contact state changed there, and ``begin`` now returns the change
+    for the drivers to record (two symmetric backlashes touching at once under a fixed-step method lost one of
+    the two contact events that way, and later left a contact they had never entered). None at a run's start."""
+    from types import SimpleNamespace
+    from regmech.hybrid.surfaces import SurfaceSet
+    g = np.array([0.3, -0.2, 0.5])
+    c = SimpleNamespace(n_surf=3, surface_owner=[("bl1", 1), ("bl1", -1), ("bl2", 1)],
+                        surface_values=lambda t, y: g.copy(), surface_kinds={})
+    s = SurfaceSet(c)
+    s.reset()
+    assert s.begin(0.0, None) == []                         # the run's start: the states as they are
+    assert s.states() == {"bl1": 1, "bl2": 1}
+    g[:] = [0.3, -0.2, -1e-17]                              # bl2's surface a round-off past zero at a restart
+    assert s.begin(0.1, None) == [("bl2", 1, 0, "contact")]
+    assert s.begin(0.2, None) == []                         # reported once
+    s.cross([0])                                            # a crossing keeps the side it gave (no second report)
+    g[:] = [1e-17, -0.2, -1e-17]
+    assert s.begin(0.3, None) == []
+    s.reset()
+    assert s.begin(0.0, None) == []

@@ -34,6 +34,7 @@ class SurfaceSet:
         self.owner = c.surface_owner
         self.sides = np.ones(self.n_events)
         self._flipped = None        # sides set by a crossing, kept by the next ``begin``
+        self._running = False       # a segment of the current run has begun (``begin``)
         devices = {}
         for k, (name, code) in enumerate(self.owner):
             devices.setdefault(name, []).append((k, code))
@@ -43,17 +44,31 @@ class SurfaceSet:
     def reset(self):
         """Forget a crossing of a previous run (a run starts from the surfaces' signs alone)."""
         self._flipped = None
+        self._running = False
 
-    def begin(self, t, y):
+    def begin(self, t, y) -> list[tuple[str, int, int, str]]:
         """Set the sides at the start of a segment from the surfaces' signs at ``(t, y)``; the surfaces
-        just crossed keep the side ``cross`` gave them (on the surface, the sign of g is round-off)."""
+        just crossed keep the side ``cross`` gave them (on the surface, the sign of g is round-off).
+
+        Returns ``(device, old, new, kind)`` for each device whose contact state these sides change against
+        the previous segment's (none at the run's first segment): a surface that reached zero at the instant
+        of another event (a friction event, a breakpoint, another surface's crossing) and starts the next
+        segment a round-off past it changed its device's state there, and the drivers record it as an
+        ``Event`` instead of letting it pass silently."""
         g = self.c.surface_values(t, y)
         sides = np.where(g < 0.0, -1.0, 1.0)
         if self._flipped is not None:
             idx, kept = self._flipped
             sides[idx] = kept
             self._flipped = None
+        changes = []
+        if self._running:
+            before, after = self.states(), self.states(sides)
+            changes = [(name, before[name], after[name], self._kinds.get(name, CONTACT)) for name in before
+                       if before[name] != after[name]]
+        self._running = True
         self.sides = sides
+        return changes
 
     def event_values(self, t, y):
         """``side * g`` per surface: positive until the state leaves the side it started the segment on."""

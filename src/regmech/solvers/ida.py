@@ -448,7 +448,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
             sol = None
         else:
             if surf is not None:
-                surf.begin(t, y)
+                for (name, old, new, kind) in surf.begin(t, y):      # reached at another event's instant
+                    events.append(Event(t, name, old, new, kind))
             sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse, deadline,
                                  kind_atol)
         if sol is not None and sol.status == 2:

@@ -1271,7 +1271,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         knots = np.append(inner, t_stop)
         if t < t_stop:
             if surf is not None:
-                surf.begin(t, consistent_row(c, t, u, modes)[0])
+                for (comp, old, new, kind) in surf.begin(t, consistent_row(c, t, u, modes)[0]):
+                    events.append(Event(t, comp, old, new, kind))      # reached at another event's instant
             end = _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name,
                                explicit, t_end, deadline)
             stats.segments += 1
