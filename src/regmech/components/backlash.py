@@ -161,7 +161,7 @@ class ElastoBacklash(TwoFlangeCompliant):
         w = de[0]
         pos = _smaller(phi_diff - b_half, phi_diff - b_half + self.d * w / self.c)
         neg = _smaller(-phi_diff - b_half, -(phi_diff + b_half) - self.d * w / self.c)
-        # then the damper's saturation within each contact (``stops.damper_saturation``: tau_d = tau_c)
+        # then the damper's saturation within each contact (``damper_saturation``: tau_d = tau_c)
         return _play_surfaces(phi_diff, self.b, pos, neg) + [
             (damper_saturation(pos, phi_diff - b_half - self.d * w / self.c), 1),
             (damper_saturation(neg, -(phi_diff + b_half) + self.d * w / self.c), -1)]

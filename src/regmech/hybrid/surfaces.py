@@ -61,11 +61,7 @@ class SurfaceSet:
             idx, kept = self._flipped
             sides[idx] = kept
             self._flipped = None
-        changes = []
-        if self._running:
-            before, after = self.states(), self.states(sides)
-            changes = [(name, before[name], after[name], self._kinds.get(name, CONTACT)) for name in before
-                       if before[name] != after[name]]
+        changes = self._changes(self.sides, sides) if self._running else []
         self._running = True
         self.sides = sides
         return changes
@@ -88,12 +84,18 @@ class SurfaceSet:
         idx = np.asarray(crossed, dtype=int)
         if idx.size == 0:
             return []
-        before = self.states()
         sides = self.sides.copy()
         sides[idx] = -sides[idx]
-        after = self.states(sides)
+        changes = self._changes(self.sides, sides)
         self.sides = sides
         self._flipped = (idx, sides[idx])
+        return changes
+
+    def _changes(self, old_sides, new_sides) -> list[tuple[str, int, int, str]]:
+        """``(device, old, new, kind)`` for each device whose contact state differs between the two sides."""
+        if np.array_equal(old_sides, new_sides):
+            return []
+        before, after = self.states(old_sides), self.states(new_sides)
         return [(name, before[name], after[name], self._kinds.get(name, CONTACT)) for name in before
                 if before[name] != after[name]]
 

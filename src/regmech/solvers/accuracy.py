@@ -104,7 +104,7 @@ import numpy as np
 
 from ..errors import AccuracyError, ParameterError, SimulationError
 from .common import check_times, output_grid, spread_rtol_floor
-from .richardson import ABSOLUTE_FLOOR, MAGNITUDE_FLOOR, StateLabel, kind_scales
+from .richardson import ABSOLUTE_FLOOR, MAGNITUDE_FLOOR, StateLabel, kind_members, kind_scales
 
 #: the accuracy of ``solver="auto"`` when none is given: 1e-3 of the range of the signals of a kind
 DEFAULT_ACCURACY = 1e-3
@@ -563,11 +563,8 @@ def magnitude_ratio(labels, values) -> tuple[float, str]:
         return 1.0, ""
     rng = np.ptp(values, axis=0)
     mag = np.max(np.abs(values), axis=0)
-    kinds: dict = {}
-    for i, lab in enumerate(labels):
-        kinds.setdefault(lab.kind, []).append(i)
     best, signal = 1.0, ""
-    for members in kinds.values():
+    for members in kind_members(labels):
         r_k, m_k = float(rng[members].max()), float(mag[members].max())
         if not (math.isfinite(r_k) and math.isfinite(m_k)) or r_k <= max(MAGNITUDE_FLOOR * m_k, ABSOLUTE_FLOOR):
             continue
@@ -585,10 +582,8 @@ def motion_scale(res, labels, grid, values=None) -> float:
         return 1.0
     values = state_matrix(res, labels, grid) if values is None else values
     rng = np.ptp(values, axis=0)
-    kinds: dict = {}
-    for i, lab in enumerate(labels):
-        kinds[lab.kind] = max(kinds.get(lab.kind, 0.0), float(rng[i]))
-    moving = [v for v in kinds.values() if v > 0 and math.isfinite(v)]
+    ranges = [float(rng[members].max()) for members in kind_members(labels)]
+    moving = [v for v in ranges if v > 0 and math.isfinite(v)]
     return float(np.clip(min(moving), ATOL_SCALE_MIN, 1.0)) if moving else 1.0
 
 

@@ -316,12 +316,13 @@ class KnotClock(_EqualSteps):
         while self._k < len(self.knots) and self.knots[self._k] <= t:
             self._k += 1
         target = self.knots[self._k] if self._k < len(self.knots) else self.t_bound
-        if self.even_start:             # the first interval: its count by the rule of ``step_counts``
+        n = _count(target - t, self.h_max)
+        if self.even_start:             # the first interval: the rule of ``step_counts``
             self.even_start = False
             after = self.knots[self._k + 1] if self._k + 1 < len(self.knots) else self.t_bound
-            spans = [target - t, after - target] if after > target else [target - t]
-            return target, int(step_counts(spans, self.h_max, True)[0]) * self.parts
-        return target, max(1, math.ceil((target - t) / self.h_max * (1 - 1e-12))) * self.parts
+            n = _even_first(n, _count(after - target, self.h_max) if after > target else None, target - t,
+                            self.h_max)
+        return target, n * self.parts
 
 
 #: a first knot interval shorter than this fraction of the step is not given one more step (``step_counts``)
@@ -337,12 +338,23 @@ def step_counts(spans, h_max, even_start=False) -> np.ndarray:
     tyres' transient after a break-away 2.2 ms before an output instant was never compared: estimate 8.7e-8,
     error 2.5e-5. (Odd counts after an odd first one pair up, and a sliver of a first interval, a knot a few ulps
     past the start, is stepped to at once: half of it would not advance t.)"""
-    spans = np.asarray(spans, float)
-    counts = np.maximum(1, np.ceil(spans / float(h_max) * (1 - 1e-12))).astype(int)
-    if (even_start and len(counts) and counts[0] % 2 and (len(counts) == 1 or counts[1] % 2 == 0)
-            and spans[0] > FIRST_SPAN_MIN * h_max):
-        counts[0] += 1
+    counts = np.array([_count(float(span), h_max) for span in spans], dtype=int)
+    if even_start and len(counts):
+        counts[0] = _even_first(int(counts[0]), int(counts[1]) if len(counts) > 1 else None, float(spans[0]),
+                                h_max)
     return counts
+
+
+def _count(span, h_max) -> int:
+    """Equal steps of at most ``h_max`` over ``span`` (one at least; a span of h_max to round-off is one step)."""
+    return max(1, math.ceil(span / float(h_max) * (1 - 1e-12)))
+
+
+def _even_first(n_first, n_next, span, h_max) -> int:
+    """The first interval's count under ``step_counts``' rule (``n_next`` None: no interval after it)."""
+    if n_first % 2 and (n_next is None or n_next % 2 == 0) and span > FIRST_SPAN_MIN * h_max:
+        return n_first + 1
+    return n_first
 
 
 class GroupedKnotClock(_EqualSteps):
@@ -871,8 +883,9 @@ def _fixed_step_crossing(problem, make_stepper, watch, modes, t0, u0, t1, t_hit,
     method's local error: the crossing time and the restart state then carry an error of lower order than the
     method's (rk4 on the excavator's located contacts: 7.65e-7 of the range at h = 4 ms and 2 ms alike, 6.1e-7
     at 1 ms), the same at h and 2h, so the error estimate's comparison of the two did not see it. The state at
-    ``s`` is taken instead from a run of steps ending at ``s`` (``make_stepper`` from ``(t0, u0)``: one step of
-    ``s - t0`` for the main run), on the old branch throughout, and the crossing is the root of the event function
+    ``s`` is taken instead from a run of steps ending at ``s`` (``make_stepper`` from ``(t0, u0)`` with the run's
+    own clock: two steps of ``(s - t0) / 2`` in the main run, one of ``s - t0`` in the companion at 2h), on the
+    old branch throughout, and the crossing is the root of the event function
     along those states (``locate_crossing``, at most ``FIXED_LOCATE_EVALS`` evaluations). ``instants``: output
     instants in ``(t0, t_hit)``, whose states are taken the same way. Their steps are counted in
     ``stats.extra["crossing_steps"]``, not in ``stats.steps``. Returns ``(t*, u*, {instant: state})``; the
@@ -1286,9 +1299,10 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
             crossed[end.crossed] = -1
             f_crossed, s_crossed = guards.split(crossed)
             if surf is not None and watch is not None and len(s_crossed):
-                # the surfaces crossed at the same instant (two symmetric backlashes): each flips here with its
-                # event; left to the next segment's start, one a round-off below zero there flipped silently
-                # (``SurfaceSet.begin`` takes the sides from the signs), and its contact never made an event
+                # the surfaces at zero with the crossed one (two symmetric backlashes; a contact and the damper's
+                # saturation within it, which leave together): each flips here with its event. Left to the next
+                # segment's start (``SurfaceSet.begin``), one exactly at zero there keeps its side, starts
+                # disarmed and is never seen to cross: its device's state then jumped at a later event, -1 -> +1
                 also = watch.armed & (watch.values(t, u, modes) <= 0)
                 s_crossed = np.union1d(s_crossed, guards.split(np.where(also, -1, 0))[1])
             if len(s_crossed):

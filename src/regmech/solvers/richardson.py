@@ -140,15 +140,20 @@ def state_labels(c) -> list[StateLabel]:
     return labels
 
 
+def kind_members(labels) -> list[list[int]]:
+    """The indices of the labels of each kind of state, in the order the kinds first appear."""
+    kinds: dict = {}
+    for i, lab in enumerate(labels):
+        kinds.setdefault(lab.kind, []).append(i)
+    return list(kinds.values())
+
+
 def kind_scales(labels, values: np.ndarray) -> np.ndarray:
     """Per state: the largest range over the run of the states of its kind (with the floors of the module)."""
     rng = np.ptp(values, axis=0) if len(values) else np.zeros(len(labels))
     mag = np.max(np.abs(values), axis=0) if len(values) else np.zeros(len(labels))
     scales = np.empty(len(labels))
-    kinds: dict = {}
-    for i, lab in enumerate(labels):
-        kinds.setdefault(lab.kind, []).append(i)
-    for members in kinds.values():
+    for members in kind_members(labels):
         scales[members] = max(float(rng[members].max()), MAGNITUDE_FLOOR * float(mag[members].max()),
                               ABSOLUTE_FLOOR)
     return scales
