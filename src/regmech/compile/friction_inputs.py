@@ -24,18 +24,20 @@ from .kernels import _lambdify, _SymbolicSelf
 
 
 class StateInput:
-    """``q = y[col]``: a state of the friction device itself."""
+    """``q = y[col] + datum``: a state of the friction device itself (``datum``: what its entry of ``y``
+    departs from, ``CompiledSystem.state_datum``)."""
 
-    def __init__(self, col: int):
+    def __init__(self, col: int, datum: float = 0.0):
         self.col = int(col)
+        self.datum = float(datum)
         self.cols = np.array([self.col], np.int64)
         self._one = np.ones(1)
 
     def value(self, t, y, left):
-        return float(y[self.col])
+        return float(y[self.col]) + self.datum
 
     def value_and_gradient(self, t, y, left):
-        return float(y[self.col]), self._one
+        return float(y[self.col]) + self.datum, self._one
 
 
 class CommandInput:
@@ -132,7 +134,8 @@ def build_inputs(c, devices, own_states) -> list:
         ins = []
         for spec in specs:
             if spec[0] == "state":
-                ins.append(StateInput(c.iz[own_states[j][spec[1]]]))
+                k = own_states[j][spec[1]]
+                ins.append(StateInput(c.iz[k], c.state_datum[k]))
             elif spec[0] == "command":
                 ins.append(CommandInput(c, spec[1], spec[2], f"{type(dev).__name__} '{dev.name}'"))
             else:

@@ -249,7 +249,7 @@ class Trajectory:
                     idx[f"{dev.name}.{fname}.{pn}"] = lambda kk=kk: self._x(kk)
                     idx[f"{dev.name}.{fname}.{wn}"] = lambda kk=kk: self._v(kk)
             for name, j in maps["states"].get(dev.name, ()):
-                idx[name] = lambda j=j: self.Y[:, c.iz[j]]
+                idx[name] = lambda j=j: self.Y[:, c.iz[j]] + c.state_datum[j]
             if dev.derived_units:
                 self._derived_recipes(dev, idx, where, taus, maps)
             for j in maps["modes"].get(dev.name, ()):
@@ -267,7 +267,8 @@ class Trajectory:
                 e = [self._row_e(w, 0) for w in where]
                 de = [self._row_e(w, 1) for w in where]
                 tau = [np.asarray(tf(), float) for tf in taus]
-                z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] for name, j in maps["states"].get(dev.name, ())}
+                z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] + self.c.state_datum[j]
+                     for name, j in maps["states"].get(dev.name, ())}
                 who = f"{type(dev).__name__} '{dev.name}'"
                 try:
                     out = dev.derived(self.t, self.left, e, de, tau, z)

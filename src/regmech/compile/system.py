@@ -110,6 +110,9 @@ class CompiledSystem:
         nz = 0
         self.state_names: list[str] = []
         self.state_start: list[float] = []
+        #: per state the datum its entry of ``z`` departs from (``FrictionDevice.friction_state_datum``): the
+        #: state's value is ``z + state_datum``; 0 but for a thermal mass's temperature
+        self.state_datum: list[float] = []
         for tpl, devs in by_tpl.values():
             rows = np.array([[row_of[id(r)] for r in st.rows[d.name]] for d in devs], dtype=int).reshape(len(devs), tpl.k)
             ns = len(tpl.states)
@@ -119,6 +122,7 @@ class CompiledSystem:
                     self.state_names.append(f"{d.name}.{s}")
                     val = d._values.get(start_param) if start_param else None
                     self.state_start.append(0.0 if val is None else float(val))
+                    self.state_datum.append(0.0)
             nz += len(devs) * ns
             self.groups.append(KernelGroup(tpl, devs, rows, sidx))
         # friction devices' own states (a thermal mass's temperature): after the kernels' states, their
@@ -127,14 +131,17 @@ class CompiledSystem:
         for row in st.friction:
             d = row.device
             own = {}
+            datum = d.friction_state_datum() if hasattr(d, "friction_state_datum") else {}
             for s, start in (d.friction_states() if hasattr(d, "friction_states") else {}).items():
                 own[s] = nz
                 self.state_names.append(f"{d.name}.{s}")
-                self.state_start.append(float(start))
+                self.state_datum.append(float(datum.get(s, 0.0)))
+                self.state_start.append(float(start) - self.state_datum[-1])
                 nz += 1
             self._fstate_z.append(own)
         self.nz = nz
         self.state_start = np.array(self.state_start, float)
+        self.state_datum = np.array(self.state_datum, float)
         # switching surfaces of piecewise laws (``Device.switching_surfaces``): surface k of instance i of a
         # group is entry ``start + k * n + i``; ``surface_owner`` names its device and state code
         self.surface_groups = []

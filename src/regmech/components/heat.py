@@ -39,6 +39,8 @@ friction coefficient is ``mu(|w_rel|) * fade(T)`` (``fade``: (T [K], factor) poi
 between them, constant beyond; capacities ``tau0`` and ``tau0_max`` fade too, so a hot
 stuck clutch breaks away earlier). Books: ``heat_stored = C (T - T0)`` and
 ``heat_to_ambient = int G (T - T_amb) dt`` [J] add up to the dissipated ``heat``.
+The solvers integrate the rise ``T - T_amb`` (``FrictionDevice.friction_state_datum``), so that
+their relative tolerance weighs the heating, not the ambient's 293 K; ``<name>.T`` is ``T``.
 """
 
 from __future__ import annotations

@@ -17,7 +17,12 @@ O(1) difference there. The switch times of the friction events are checked
 separately: the companion runs must take the same path through the modes
 (the same changes, device by device, in the same order), and each event of
 the result gets ``Event.t_error``, the difference of its switch time between
-the runs; ``stats.extra["event_time_error"]`` is the largest.
+the runs; ``stats.extra["event_time_error"]`` is the largest. One exception,
+for adaptive pairs: a round trip of a device's mode (a -> b -> a) lasting at
+most ``GRAZE_FRACTION`` of the run, seen by one run only (a grazing stick of
+a few microseconds, found by one tolerance and missed by the next), is left
+to the state signals, which show its effect on the motion as they show a
+grazing contact's; ``stats.extra["grazing"]`` lists such trips.
 
 How it is estimated, per family of solver:
 
@@ -89,7 +94,8 @@ meet the accuracy.
 returned one), ``settings`` (rtol/atol or h the run ended with),
 ``error_method``, ``error_floor`` (the round-off bound, with links),
 ``rtol_cap`` (the state that capped the rtol, when one did),
-``event_time_error`` (with events); ``wall_time`` counts every run,
+``event_time_error`` (with events), ``grazing`` (round trips left to the
+states, when any); ``wall_time`` counts every run,
 ``extra["wall_time_main"]`` the returned one alone.
 """
 
@@ -164,6 +170,11 @@ FIXED_STEP_MARGIN = 3.0
 STABLE_FRACTION = 0.25
 #: switch instants closer than this (relative to max(1, |t|)) are one change of a device (round-off pairs)
 SAME_INSTANT = 1e-9
+#: a round trip of a friction mode seen by one run of an adaptive pair only, lasting at most this fraction of
+#: the run's span, is judged by the state signals (``match_events``, ``graze_span``): the OneWayClutch hard
+#: case grazes a stick for 4 us at t = 1.5 s, which ida saw at rtol 3e-8, 3e-10 and 3e-11 but not at 3e-9,
+#: so that two pairs were rejected at accuracy 1e-6 and the third ran at 3e-11 (793 ms, error 2.2e-9)
+GRAZE_FRACTION = 1e-4
 
 
 def check_accuracy(accuracy) -> float:
@@ -317,22 +328,58 @@ def net_changes(events) -> list[tuple[float, str, int, int, list[int]]]:
 @dataclasses.dataclass
 class EventMatch:
     same_path: bool
-    t_error: list            # per event of ``b``: |t_a - t_b| of its match (None: merged away)
+    t_error: list            # per event of ``b``: |t_a - t_b| of its match (None: merged away or grazing)
     max_error: float | None
     devices: list            # devices whose changes differ between the runs
+    #: brief round trips of a mode seen by one run of the pair only, ``(device, t, duration)``, judged by the
+    #: state signals they shape (``graze_span`` of ``match_events``)
+    grazing: list = dataclasses.field(default_factory=list)
 
 
-def match_events(events_a, events_b) -> EventMatch:
+def _path(seq) -> list:
+    return [(e[2], e[3]) for e in seq]
+
+
+def _without_trips(seq, span: float) -> tuple[list, list]:
+    """``seq`` (one device's ``net_changes``) without its round trips ``a -> b -> a`` that last at most
+    ``span`` seconds, and the trips removed ``(t, duration)``."""
+    out, trips = [], []
+    for e in seq:
+        if out and out[-1][2] == e[3] and out[-1][3] == e[2] and e[0] - out[-1][0] <= span:
+            first = out.pop()
+            trips.append((first[0], e[0] - first[0]))
+            continue
+        out.append(e)
+    return out, trips
+
+
+def match_events(events_a, events_b, graze_span: float | None = None) -> EventMatch:
     """Compare the mode changes of two runs, device by device (``net_changes``): the same sequence of
-    (old, new) per device is the same path, and the k-th changes of a device are matched."""
+    (old, new) per device is the same path, and the k-th changes of a device are matched.
+
+    ``graze_span`` [s]: where the sequences of a device differ, its round trips ``a -> b -> a`` of at most
+    this duration are taken out of both runs and the rest compared. A grazing touch of zero slip (a
+    one-way clutch's stick of 4 us at t = 1.5 s in the OneWayClutch hard case, 2 -> 0 -> 2) is seen by
+    one tolerance and missed by the next, while its effect on the motion is within both runs'
+    tolerances: the pair's state signals judge it, as they judge a grazing contact (the trips are listed
+    in ``grazing``). A trip that changes the motion by more than the accuracy shows in those signals."""
     na, nb = net_changes(events_a), net_changes(events_b)
     per_a, per_b = defaultdict(list), defaultdict(list)
     for e in na:
         per_a[e[1]].append(e)
     for e in nb:
         per_b[e[1]].append(e)
-    differ = sorted(comp for comp in set(per_a) | set(per_b)
-                    if [(e[2], e[3]) for e in per_a[comp]] != [(e[2], e[3]) for e in per_b[comp]])
+    differ, grazing = [], []
+    for comp in sorted(set(per_a) | set(per_b)):
+        if _path(per_a[comp]) == _path(per_b[comp]):
+            continue
+        if graze_span is not None and graze_span > 0:
+            (sa, ta), (sb, tb) = _without_trips(per_a[comp], graze_span), _without_trips(per_b[comp], graze_span)
+            if _path(sa) == _path(sb):
+                per_a[comp], per_b[comp] = sa, sb
+                grazing += [(comp, t, d) for t, d in ta + tb]
+                continue
+        differ.append(comp)
     t_error: list = [None] * len(events_b)
     worst = None
     if not differ:
@@ -342,7 +389,7 @@ def match_events(events_a, events_b) -> EventMatch:
                 worst = dt if worst is None else max(worst, dt)
                 for i in eb[4]:
                     t_error[i] = dt
-    return EventMatch(not differ, t_error, worst, differ)
+    return EventMatch(not differ, t_error, worst, differ, sorted(grazing, key=lambda g: g[1]))
 
 
 def _path_text(events, device, n=4) -> str:
@@ -448,6 +495,7 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     labels = result_state_labels(c)
     columns = state_columns(c)
     grid = output_grid(t_start, t_end, dt_out)
+    graze = GRAZE_FRACTION * (t_end - t_start)
 
     def states(res):
         return state_matrix(res, labels, grid, columns)
@@ -502,14 +550,14 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
                                 **_worst_fields(history, floor))
         tight = run(r_tight)
         v_tight = states(tight)
-        est, ev = _pair_estimate(v_loose, v_tight, loose, tight, labels, grid, round_off)
+        est, ev = _pair_estimate(v_loose, v_tight, loose, tight, labels, grid, round_off, graze)
         if loose_atol is not None and not (est.value <= accuracy and ev.same_path):
             # the pair with the unscaled loose run missed: the loose run again with the pair's atol, against
             # the same tight run (what the retry below needs: a pair whose difference follows the tolerance)
             loose_atol = None
             loose = run(r)
             v_loose = states(loose)
-            est, ev = _pair_estimate(v_loose, v_tight, loose, tight, labels, grid, round_off)
+            est, ev = _pair_estimate(v_loose, v_tight, loose, tight, labels, grid, round_off, graze)
         history.append((r, est, ev))
         if est.value <= accuracy and ev.same_path:
             break
@@ -544,14 +592,15 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     return tight
 
 
-def _pair_estimate(v_loose, v_tight, loose, tight, labels, grid, round_off):
+def _pair_estimate(v_loose, v_tight, loose, tight, labels, grid, round_off, graze_span=None):
     """``(Estimate, EventMatch)`` of a pair: ``PAIR_FACTOR`` times the scaled difference of its state signals
-    (never below the round-off bound) and the comparison of its friction events."""
+    (never below the round-off bound) and the comparison of its friction events (round trips up to
+    ``graze_span`` seen by one run only judged by the signals, ``match_events``)."""
     est = compare_states(v_loose, v_tight, labels, grid)
     est = dataclasses.replace(est, value=PAIR_FACTOR * est.value)
     if est.value < round_off:
         est = dataclasses.replace(est, value=round_off)
-    return est, match_events(loose.events, tight.events)
+    return est, match_events(loose.events, tight.events, graze_span)
 
 
 def magnitude_ratio(labels, values) -> tuple[float, str]:
@@ -595,6 +644,8 @@ def _record(res, accuracy, est: Estimate, attempts, settings, method):
 
 
 def _record_events(res, ev: EventMatch):
+    if ev.grazing:
+        res.stats.extra["grazing"] = [{"component": comp, "t": t, "duration": d} for comp, t, d in ev.grazing]
     if not res.events:
         return
     res.events[:] = [dataclasses.replace(e, t_error=dt) if dt is not None else e
