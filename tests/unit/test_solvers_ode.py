@@ -257,6 +257,32 @@ def test_late_forcing_and_polynomial_growth_are_not_divergence():
     assert res["J.w"][-1] == pytest.approx(1e6 * 0.05, rel=1e-2)     # the step ending on the jump sees part of it
 
 
+def test_growth_watch_reuses_its_arrays_without_mixing_them_up():
+    """The roughness history keeps its vectors in reused arrays (no allocation per step): a restart that
+    rewinds and replays the same steps, and a mode change, must leave it where the plain sequence does, and a
+    sawtooth growing from a small start is still stopped as rough."""
+    from regmech.solvers.divergence import ROUGH_STEPS, GrowthWatch
+    rng = np.random.default_rng(5)
+    n = 40
+    states = [np.cumsum(rng.normal(size=n)) * (1 + 0.01 * k) for k in range(30)]
+    plain, rewound = GrowthWatch(0.0, states[0]), GrowthWatch(0.0, states[0])
+    for k in range(1, 30):
+        assert plain.check(0.1 * k, states[k]) is None
+    for k in range(1, 30):
+        assert rewound.check(0.1 * k, states[k]) is None
+        if k == 20:         # an event at t = 1.5 s: the steps after it are redone from there
+            for j in range(16, 21):
+                assert rewound.check(0.1 * j, states[j]) is None
+    assert rewound.largest_roughness == plain.largest_roughness
+    assert [e[3] for e in rewound._recent] == [e[3] for e in plain._recent]
+    assert all(np.array_equal(a[1], b[1]) for a, b in zip(rewound._recent, plain._recent))
+    rewound.mode_change()
+    assert rewound._recent == [] and rewound.check(3.0, states[-1]) is None
+    watch = GrowthWatch(0.0, np.full(n, 1e-3))
+    verdicts = [watch.check(0.01 * k, (-1.5) ** k * 1e-3 * np.ones(n)) for k in range(1, 3 * ROUGH_STEPS)]
+    assert any(v is not None and v.kind == "rough" for v in verdicts)
+
+
 @pytest.mark.parametrize("solver, bad", [("rk4", {"rtol": 1e-6}), ("scipy:RK45", {"h": 1e-3}),
                                          ("convolution", {"order": 3}), ("euler", {"h": -1.0}),
                                          ("scipy:BDF", {"rtol": 0.0}), ("rk4", {"max_growth": 1.0}),
