@@ -164,6 +164,27 @@ def test_coast_down_closed_forms(cls, closed):
     assert not energy_checks(res, mod, rel=1e-8)
 
 
+@pytest.mark.parametrize("cls", [InverseSpeedDependentTorque, InverseSpeedDependentForce])
+def test_inverse_load_at_rest_evaluates_without_dividing_by_zero(cls):
+    """Fuzz seed 80263: the inverse law was a Piecewise with ``w / w^2``; numpy evaluates both branches, so an
+    output row at w = 0 (a load starting at rest) divided by zero inside the kernels (a RuntimeWarning to the
+    user). Written as ``w / max(|w|, w_eps)^2`` it never divides by less than ``w_eps^2``."""
+    import warnings
+    translational = "Force" in cls.__name__
+    mod = rm.Model("inverse_at_rest")
+    body = mod.add(Mass("body", m=2.0) if translational else Inertia("body", J=2.0))
+    load = mod.add(cls("load", **({"f_nominal": 3.0, "v_nominal": 4.0} if translational
+                                  else {"tau_nominal": 3.0, "w_nominal": 4.0}), w_eps=0.5))
+    mod.connect(body.flange_b, load.flange)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = mod.simulate(t_end=0.2, dt_out=0.01, **TIGHT)
+        force = res["load.f" if translational else "load.tau"]
+    assert np.all(force == 0.0)                      # at rest, no load: the body stays at rest
+    speed = res["body.v" if translational else "body.w"]
+    assert np.all(speed == 0.0)
+
+
 def test_load_parameter_errors():
     with pytest.raises(ParameterError, match="LinearSpeedDependentTorque 'l'.*w_nominal"):
         LinearSpeedDependentTorque("l", tau_nominal=1.0, w_nominal=0.0)

@@ -31,6 +31,7 @@ import sympy
 from ..component import Device, Param
 from ..errors import ParameterError
 from ..ports import ROTATIONAL, TRANSLATIONAL
+from .electric import SpeedAbove
 from .friction import Clutch
 from .powertrain import STANDARD_GRAVITY
 
@@ -58,8 +59,11 @@ def _shapes():
         "Linear": ("tau = tau_nominal * w / w_nominal", lambda w, wn, we: w / wn),
         "Quadratic": ("tau = tau_nominal * w |w| / w_nominal^2", lambda w, wn, we: w * sympy.Abs(w) / wn ** 2),
         "Sign": ("tau = tau_nominal * tanh(w / w_eps)", lambda w, wn, we: sympy.tanh(w / we)),
+        # max(w^2, w_eps^2) as SpeedAbove(w, w_eps)^2, not a Piecewise with w / w^2: numpy evaluates both branches
+        # of a Piecewise, and the inverse one at w = 0 (a load starting at rest) divided by zero on the output rows
+        # there (a RuntimeWarning from inside the kernels, fuzz seed 80263; the value taken was the other branch's)
         "Inverse": ("tau = tau_nominal * w_nominal * w / max(w^2, w_eps^2)",
-                    lambda w, wn, we: sympy.Piecewise((wn * w / w ** 2, w ** 2 > we ** 2), (wn * w / we ** 2, True))),
+                    lambda w, wn, we: wn * w / SpeedAbove(w, we) ** 2),
     }
 
 

@@ -599,11 +599,7 @@ def _reference_noise(c, t, span=None, level="a"):
     fuzz seed 60000's segment began where its sine reference was small, its dummy accelerations got a tolerance
     below the noise the reference had 0.15 s later, and IDA halved its steps on that noise until max_steps
     (rtol 1e-10)."""
-    if level == "v":
-        sigs = [(s, 1) for _, s in getattr(c, "_pos_sig", ())]
-    else:
-        sigs = [(s, 2) for _, s in getattr(c, "_pos_sig", ())] + [(s, 1) for _, s in getattr(c, "_spd_sig", ())]
-    sigs = [(s, k) for s, k in sigs if hasattr(s, "derivative_noise")]
+    sigs = _noisy_references(c)[level]
     if not sigs:
         return 0.0
     if span is None or not span[1] > span[0]:
@@ -621,6 +617,30 @@ def _reference_noise(c, t, span=None, level="a"):
     if key[1] is not None:
         cache[key] = noise
     return noise
+
+
+def _noisy_references(c) -> dict:
+    """Per ``level`` of ``_reference_noise`` the references ``(signal, derivative order)`` whose derivatives are
+    taken by finite differences; fixed for a compiled system (its references are read at compile), so found
+    once: every segment of every run asks (most models have none)."""
+    got = c.__dict__.get("_noisy_references")
+    if got is None:
+        pos, spd = getattr(c, "_pos_sig", ()), getattr(c, "_spd_sig", ())
+        keep = lambda pairs: [(sig, k) for sig, k in pairs if hasattr(sig, "derivative_noise")]
+        got = c._noisy_references = {"v": keep([(sig, 1) for _, sig in pos]),
+                                     "a": keep([(sig, 2) for _, sig in pos] + [(sig, 1) for _, sig in spd])}
+    return got
+
+
+def _mass_constants(c) -> tuple:
+    """``(largest mass, smallest positive mass, masses of the dummy coordinates at least that)`` of a compiled
+    system, for ``_atol_vector`` (found once: it runs at every segment)."""
+    got = c.__dict__.get("_atol_masses")
+    if got is None:
+        m_min = float(c.mass[c.mass > 0].min(initial=1.0))
+        m_dummy = np.maximum(c.mass[c.Dv], m_min) if len(c.Dv) else np.ones(0)
+        got = c._atol_masses = (float(c.mass.max(initial=1.0)), m_min, m_dummy)
+    return got
 
 
 def _atol_vector(c, atol, rtol, y, yp, k_max, kind_atol=None, t=None, span=None):
@@ -650,14 +670,12 @@ def _atol_vector(c, atol, rtol, y, yp, k_max, kind_atol=None, t=None, span=None)
     # finite differences only (fuzz CI seed 2002: 5e-11 rad/s^2 on a speed of 18 rad/s): the dummy accelerations
     # and the forces made of them are not asked for more
     ref = 0.0 if t is None else _reference_noise(c, t, span)
-    m_max = float(c.mass.max(initial=1.0))
+    m_max, m_min, m_dummy = _mass_constants(c)
     vec[c.ilam] = f_tol * f_scale + noise + ref * m_max
     a_scale = max(1.0, float(np.abs(a).max(initial=0.0)))
-    m_min = float(c.mass[c.mass > 0].min(initial=1.0))
     # a dummy acceleration carries the tolerated force error over its mass (a massless point: the lightest
     # mass's): on seed 4004 a 2 kg tread's acceleration, held to rtol of the largest acceleration, still
     # failed IDA's error test at every other step over the last 0.12 s (41,046 attempts)
-    m_dummy = np.maximum(c.mass[c.Dv], m_min) if len(c.Dv) else np.ones(0)
     vec[c.iad] = f_tol * np.maximum(a_scale, f_scale / m_dummy) + noise / m_min + ref
     if t is not None and len(c.Dv):
         # the speeds a callable position reference imposes carry its first derivative's noise (fuzz seed 60012:
