@@ -1102,3 +1102,36 @@ def test_a_limited_dampers_saturation_is_located_so_errors_follow_the_tolerance(
     res = m.simulate(t_end, dt_out, solver="scipy:DOP853", accuracy=1e-2)
     achieved = compare_runs(res, ref, labels, grid).value
     assert achieved <= res.stats.error_estimate <= 1e-2, (achieved, res.stats.error_estimate)
+
+
+def test_an_impact_that_reverses_a_rolling_lossy_gear_rolls_it_the_other_way():
+    """Fuzz seed 80273 (session 13's campaign): a hard stop on a lossy gear's output flange throws it from
+    9.3 rad/s to -3.7 rad/s. The mode logic flipped the slip of a friction device reversed by an impact, but not
+    a rolling gear's: every solver stopped with "'lgear1' would slide Forward with w_rel = -7.82, against its
+    own direction ... a gap in regmech's mode logic". The gear now rolls the other way after the impulse."""
+    from regmech.components import HardStop
+    from regmech.solvers.accuracy import compare_runs, result_state_labels
+    m = rm.Model("seed80273")
+    J1 = m.add(Inertia("J1", J=5.653))
+    J2 = m.add(Inertia("J2", J=1.362, w0=9.318))
+    gear = m.add(LossyGear("lgear1", ratio=2.09, loss_table=[[0.0, 0.8143, 0.6497, 0.0, 0.0],
+                                                              [0.8065, 0.7427, 0.8487, 0.001542, 0.08209]]))
+    stop = m.add(HardStop("hstop1", lower=-0.001729, upper=0.4546, e=0.4018))
+    drive = m.add(Torque("drive1", tau=Sine(amplitude=0.114, freq_hz=39.56, phase=0.2477, offset=0.05365)))
+    m.connect(gear.flange_a, J1.flange_b)
+    m.connect(gear.flange_b, J2.flange_b)
+    m.connect(stop.flange, J2.flange_b)
+    m.connect(drive.flange, J1.flange_a)
+    t_end, dt_out = 0.2984, 0.000746
+    ref = m.simulate(t_end, dt_out, solver="scipy:DOP853", rtol=1e-10, atol=1e-12)
+    impacts = [e for e in ref.events if e.kind == "impact"]
+    assert impacts and impacts[0].t == pytest.approx(0.4546 / 9.318, rel=1e-3)
+    flips = [e for e in ref.events if e.component == "lgear1" and e.kind == "mode" and e.t == impacts[0].t]
+    assert flips and flips[0].old_mode * flips[0].new_mode == -1          # Forward -> Backward at the impact
+    res = m.simulate(t_end, dt_out, solver="ida", rtol=1e-8)
+    labels, grid = result_state_labels(m.compile()), output_grid(0.0, t_end, dt_out)
+    assert compare_runs(res, ref, labels, grid).value < 1e-5
+    for r in (ref, res):
+        p = r["lgear1.power"]
+        assert p.min() >= -1e-6 * np.abs(p).max()                        # the gear only absorbs
+        assert not energy_checks(r, m, rel=1e-6)

@@ -13,14 +13,19 @@ import numpy as np
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
 
 
-def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel):
-    """The gear's mode after the crossings found at an event (step 1 of ``settle``)."""
+def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impacted=False):
+    """The gear's mode after the crossings found at an event (step 1 of ``settle``); ``impacted``: a hard stop's
+    impulse changed the speeds at this event (``impacts``)."""
     if dev.ideal:
         return FREE
     if initial or old == FREE or old == HELD:
         return FORWARD if w > scale else BACKWARD if w < -scale else STUCK
     if old == STUCK:
         return FORWARD if crossed1 else BACKWARD if crossed2 else STUCK
+    if impacted and old * w < -scale:
+        # an impact's impulse reversed its rolling (fuzz seed 80273: a hard stop on the gear's output flange
+        # threw it from 9.3 to -3.7 rad/s): it rolls the other way now, as a friction device slides
+        return -old
     # found by the root finder, or within round-off of zero and still approaching it, or already
     # past it by round-off (another device's root, located on the far side, at the same instant)
     if crossed1 or (abs(w) <= scale and (w * arel < 0 or old * w < 0)):

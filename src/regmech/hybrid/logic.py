@@ -134,7 +134,7 @@ class ModeLogic:
             engaged = self._call(dev, "normal_force", None if q is None else q[j], t, left) > 0
             if dev.coupled:
                 new[j] = gear_first_step(dev, int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
-                                         initial, scale, arel[j])
+                                         initial, scale, arel[j], impacted)
                 if old[j] in (FORWARD, BACKWARD) and new[j] == old[j] and crossed[2 * j + 1] != 0:
                     self.quadrant[j] = -self.quadrant[j]   # the driving side changed (checked in step 2)
                 continue
