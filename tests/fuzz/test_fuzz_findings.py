@@ -1135,3 +1135,22 @@ def test_an_impact_that_reverses_a_rolling_lossy_gear_rolls_it_the_other_way():
         p = r["lgear1.power"]
         assert p.min() >= -1e-6 * np.abs(p).max()                        # the gear only absorbs
         assert not energy_checks(r, m, rel=1e-6)
+
+
+def test_a_model_held_at_rest_is_not_stopped_as_diverged():
+    """Fuzz seed 80337 (session 13's campaign): a torque acting inside a locked limited-slip differential holds
+    the model at rest; DOP853 at rtol 1e-10 saw the round-off of its speeds grow from 0 to 2.5e-17 rad/s, rough
+    at every step, and stopped the run as diverged. Round-off at rest is no divergence (``divergence.QUIET``)."""
+    m = rm.Model("seed80337")
+    J1 = m.add(Inertia("J1", J=0.5268))
+    lsd1 = m.add(LimitedSlipDifferential("lsd1", ratio=1.0, preload=12250.0, mu=0.07383, cgeo=0.05, peak=1.229,
+                                         J_side=0.05622))
+    lsd2 = m.add(LimitedSlipDifferential("lsd2", ratio=1.0, preload=471.0, mu=0.27, cgeo=0.05, peak=1.191,
+                                         J_side=0.01307))
+    drive = m.add(Torque("drive1", tau=Ramp(height=-0.001243, duration=0.01095, start_time=0.01122, offset=-11.63)))
+    m.connect(lsd1.carrier, J1.flange_b)
+    m.connect(lsd2.carrier, lsd1.right)
+    m.connect(drive.flange, lsd1.right)
+    m.connect(drive.support, J1.flange_a)
+    res = m.simulate(0.215, dt_out=0.0005375, solver="scipy:DOP853", rtol=1e-10, max_steps=400_000)
+    assert np.max(np.abs(res["J1.w"])) < 1e-12

@@ -283,6 +283,20 @@ def test_growth_watch_reuses_its_arrays_without_mixing_them_up():
     assert any(v is not None and v.kind == "rough" for v in verdicts)
 
 
+def test_round_off_at_rest_is_not_divergence_but_an_instability_from_it_is():
+    """Fuzz seed 80337: a model held at rest moved by round-off (|u| from 0 to 2.5e-17, rough at every step) and
+    DOP853 stopped it as diverged. States below ``QUIET`` get no verdict; a sawtooth growing 1.5x a step from the
+    same round-off is still stopped once it is above that level."""
+    from regmech.solvers.divergence import QUIET, GrowthWatch
+    rng = np.random.default_rng(2)
+    noise = GrowthWatch(0.0, np.zeros(6))
+    assert all(noise.check(0.01 * k, rng.normal(size=6) * 1e-17 * k) is None for k in range(1, 200))
+    growing = GrowthWatch(0.0, np.zeros(6))
+    verdicts = [growing.check(0.01 * k, (-1.5) ** k * 1e-17 * np.ones(6)) for k in range(1, 200)]
+    first = next(k for k, v in enumerate(verdicts, start=1) if v is not None)
+    assert verdicts[first - 1].kind == "rough" and 1.5 ** first * 1e-17 > QUIET
+
+
 @pytest.mark.parametrize("solver, bad", [("rk4", {"rtol": 1e-6}), ("scipy:RK45", {"h": 1e-3}),
                                          ("convolution", {"order": 3}), ("euler", {"h": -1.0}),
                                          ("scipy:BDF", {"rtol": 0.0}), ("rk4", {"max_growth": 1.0}),
