@@ -257,9 +257,9 @@ def test_late_forcing_and_polynomial_growth_are_not_divergence():
     assert res["J.w"][-1] == pytest.approx(1e6 * 0.05, rel=1e-2)     # the step ending on the jump sees part of it
 
 
-def test_growth_watch_reuses_its_arrays_without_mixing_them_up():
-    """The roughness history keeps its vectors in reused arrays (no allocation per step): a restart that
-    rewinds and replays the same steps, and a mode change, must leave it where the plain sequence does, and a
+def test_growth_watch_history_survives_a_rewind_and_its_scratch_vector():
+    """The check computes |u| and the curvature d_k in one reused scratch vector: a restart that rewinds and
+    replays the same steps, and a mode change, must leave the history where the plain sequence does, and a
     sawtooth growing from a small start is still stopped as rough."""
     from regmech.solvers.divergence import ROUGH_STEPS, GrowthWatch
     rng = np.random.default_rng(5)

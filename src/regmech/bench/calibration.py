@@ -565,8 +565,10 @@ def _auto_rules_text(records) -> list[str]:
     def pair(case, acc):
         return f"{case} at {acc:.0e}: ida {t(case, 'ida', acc)}, expm {t(case, 'expm', acc)}"
 
+    costs = {row["solver"]: row["cost"] for row in summary_rows(records)}
+
     def cost(solver):
-        return _median([r.wall / r.main for r in records if r.solver == solver and r.status in RETURNED and r.main > 0])
+        return costs.get(solver, math.nan)
 
     def dop853_wins():
         # the cells (case, accuracy of AUTO_LEVELS) where DOP853 was the fastest named solver that met the accuracy
@@ -586,8 +588,8 @@ def _auto_rules_text(records) -> list[str]:
         f"coupled_clutches at 1e-6: ida {t('coupled_clutches', 'ida', 1e-6)}, LSODA "
         f"{t('coupled_clutches', 'scipy:LSODA', 1e-6)}; first at 1e-6: ida {t('first', 'ida', 1e-6)}, expm "
         f"{t('first', 'expm', 1e-6)}). scipy:DOP853's rule of the work-precision tables (small models at very tight "
-        f"tolerance) did not survive the contract: its check costs {_g(cost('scipy:DOP853'))}x a run (median) "
-        f"against ida's {_g(cost('ida'))}x, and {dop853_wins()}.",
+        f"tolerance) did not survive the contract: its check costs {_g(cost('scipy:DOP853'), '{:.2f}')}x a run (median) "
+        f"against ida's {_g(cost('ida'), '{:.2f}')}x, and {dop853_wins()}.",
         f"* **expm for a linear model that oscillates longer than its output steps repay** "
         f"(`expm_steps(a) <= K(a) periods(a)`, `K(a) = {auto.EXPM_STEPS_PER_PERIOD:g} + "
         f"{auto.EXPM_STEPS_PER_DECADE:g} log10(1/a)`): {pair('long_horizon', 1e-2)}; {pair('long_horizon', 1e-6)} "

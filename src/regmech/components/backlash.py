@@ -26,16 +26,12 @@ from __future__ import annotations
 import sympy
 
 from ..component import Param
+from ._symbolic import smaller
 from .elastic import TwoFlangeCompliant
 
 #: below this total backlash [rad or m] the play is ignored (MSL ``bEps``):
 #: a vanishing dead zone would only add kinks that do nothing
 B_EPS = 1e-10
-
-
-def _smaller(a, b):
-    """``min(a, b)`` as arithmetic (the kernels' numpy printer has no elementwise Min)."""
-    return (a + b - sympy.Abs(a - b)) / 2
 
 
 def damper_saturation(contact, spare):
@@ -51,7 +47,7 @@ def damper_saturation(contact, spare):
     0.048, 0.029, 0.0025 of the range at rtol 1e-5, 1e-6, 1e-7 (its pair at 5.5e-6 / 5.5e-7 differed by less
     than the error); with the kink located 5.7e-4, 4.4e-5, 2.3e-6. Crossing it changes no contact state, so it
     makes no ``Event``; the integration restarts there."""
-    return _smaller(contact, spare)
+    return smaller(contact, spare)
 
 
 def _play_surfaces(phi_diff, b, pos=None, neg=None):
@@ -159,8 +155,8 @@ class ElastoBacklash(TwoFlangeCompliant):
         phi_diff = e[0] - self.phi_rel0
         b_half = self.b / 2
         w = de[0]
-        pos = _smaller(phi_diff - b_half, phi_diff - b_half + self.d * w / self.c)
-        neg = _smaller(-phi_diff - b_half, -(phi_diff + b_half) - self.d * w / self.c)
+        pos = smaller(phi_diff - b_half, phi_diff - b_half + self.d * w / self.c)
+        neg = smaller(-phi_diff - b_half, -(phi_diff + b_half) - self.d * w / self.c)
         # then the damper's saturation within each contact (``damper_saturation``: tau_d = tau_c)
         return _play_surfaces(phi_diff, self.b, pos, neg) + [
             (damper_saturation(pos, phi_diff - b_half - self.d * w / self.c), 1),

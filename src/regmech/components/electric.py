@@ -28,6 +28,7 @@ import sympy
 from ..component import Device, Param
 from ..errors import ParameterError
 from ..ports import ROTATIONAL
+from ._symbolic import SpeedAbove
 from .heat import HEAT_UNITS, heat_signals
 
 
@@ -152,36 +153,6 @@ def _grid(comp, name, value) -> np.ndarray:
                              f"strictly increasing values, got {value!r}")
     arr.setflags(write=False)
     return arr
-
-
-class SpeedAbove(sympy.Function):
-    """``SpeedAbove(w, w_base) = max(|w|, w_base)`` [rad/s] as one sympy function.
-
-    Why not ``Max`` or ``Piecewise``: sympy folds ``1/Max(...)`` and its derivative into branches that
-    hold ``1/|w|``, and numpy evaluates every branch, so the kernels would divide by zero at rest (a
-    RuntimeWarning and an inf in the unused branch). This function prints as
-    ``numpy.maximum(numpy.abs(w), w_base)`` and differentiates to ``sign(w) * Heaviside(|w| - w_base)``:
-    finite everywhere, and ``1/SpeedAbove`` never divides by less than ``w_base > 0``."""
-
-    @classmethod
-    def eval(cls, w, w_base):
-        if w.is_number and w_base.is_number:
-            return sympy.Max(sympy.Abs(w), w_base)
-        return None
-
-    def fdiff(self, argindex=1):
-        w, w_base = self.args
-        step = sympy.Heaviside(sympy.Abs(w) - w_base, 0)
-        return sympy.sign(w) * step if argindex == 1 else 1 - step
-
-    def _numpycode(self, printer):
-        w, w_base = (printer._print(a) for a in self.args)
-        return f"numpy.maximum(numpy.abs({w}), {w_base})"
-
-    def _pythoncode(self, printer):
-        # the Python-float kernels of a class with one instance (``compile.kernels.Template.scalar``)
-        w, w_base = (printer._print(a) for a in self.args)
-        return f"max(abs({w}), {w_base})"
 
 
 def envelope(w, tau_max: float, p_max: float):

@@ -31,7 +31,7 @@ import sympy
 from ..component import Device, Param
 from ..errors import ParameterError
 from ..ports import ROTATIONAL, TRANSLATIONAL
-from .electric import SpeedAbove
+from ._symbolic import SpeedAbove
 from .friction import Clutch
 from .powertrain import STANDARD_GRAVITY
 

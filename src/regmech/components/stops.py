@@ -37,7 +37,8 @@ from ..component import Device, Param, Subsystem
 from ..errors import ParameterError
 from ..modes import FREE
 from ..ports import TRANSLATIONAL
-from .backlash import _smaller, damper_saturation
+from ._symbolic import smaller
+from .backlash import damper_saturation
 from .friction import FrictionContact, FrictionDevice
 from .inertial import Fixed, Mass
 
@@ -92,8 +93,8 @@ class EndStop(Device):
         sum reaches 0 while still in touch), the mirror image at ``lower``; then the damper's saturation
         within each contact (``damper_saturation``: ``d w_rel = tau_c``)."""
         rel, w = e[0], de[0]
-        up = _smaller(rel - self.upper, rel - self.upper + self.d * w / self.c)
-        lo = _smaller(self.lower - rel, self.lower - rel - self.d * w / self.c)
+        up = smaller(rel - self.upper, rel - self.upper + self.d * w / self.c)
+        lo = smaller(self.lower - rel, self.lower - rel - self.d * w / self.c)
         return [(up, 1), (lo, -1), (damper_saturation(up, rel - self.upper - self.d * w / self.c), 1),
                 (damper_saturation(lo, self.lower - rel + self.d * w / self.c), -1)]
 
@@ -135,7 +136,7 @@ class ElastoGap(Device):
         ``g = min(phi_rel0 - phi_rel, -(tau_c + d w_rel) / c)``; then the damper's saturation within the
         contact (``damper_saturation``: ``d w_rel = tau_c``)."""
         rel, w = e[0], de[0]
-        contact = _smaller(self.phi_rel0 - rel, self.phi_rel0 - rel - self.d * w / self.c)
+        contact = smaller(self.phi_rel0 - rel, self.phi_rel0 - rel - self.d * w / self.c)
         return [(contact, 1), (damper_saturation(contact, self.phi_rel0 - rel + self.d * w / self.c), 1)]
 
 

