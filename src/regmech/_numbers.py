@@ -49,3 +49,12 @@ def describe(value) -> str:
                                            and value is not None and not text.startswith(type(value).__name__)):
         text += f" (a {type(value).__name__})"
     return text
+
+
+def abs_max(arr) -> float:
+    """``max |arr|`` of a 1-d float array as a Python float, 0 for an empty one: in Python for a short array,
+    where numpy's reduction costs more than the work (the solvers' and the mode logic's per-segment and
+    per-event checks on small models); the same value either way."""
+    if len(arr) <= 32:
+        return max(map(abs, arr.tolist()), default=0.0)
+    return float(np.abs(arr).max(initial=0.0))

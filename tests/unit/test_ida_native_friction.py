@@ -327,3 +327,52 @@ def test_auto_falls_back_without_idas_native_option(monkeypatch):
     monkeypatch.setattr(auto, "simulate_with_accuracy", refusing)
     res = coupled_clutches().simulate(0.5, dt_out=1e-2, accuracy=1e-3, native=False)
     assert res.stats.solver != "ida" and "refused for the test" in res.stats.extra["auto_reason"]
+
+
+@pytest.mark.parametrize("key", ["friction_chain_band", "chain_band"])
+def test_band_jacobian_kernel_is_the_system_jacobian_in_every_mode_set(key):
+    """The closed-form band Jacobian (``_native_kernels.jacobian_band``, which replaced IDA's difference quotients
+    on band runs) against the compiled system's own ``dF/dy + cj dF/dy'`` in the solver's ordering, for several
+    ``cj`` and every mode of the friction rows: the band storage's places are computed by regmech, so a place
+    off by one would be a wrong Jacobian (slower Newton iterations or failed steps, and a wrong answer where
+    the iteration stopped early)."""
+    import ctypes
+    import itertools
+    from regmech.bench.hard_models import benchmark_chain
+    from regmech.hybrid import attach
+    from regmech.modes import BACKWARD, FORWARD, FREE, STUCK
+    from regmech.solvers.ida import _band_widths, choose_linsolver
+    m = friction_chain() if key == "friction_chain_band" else benchmark_chain(70)
+    c = attach(m.compile())
+    N = c.N
+    linsolver, order = choose_linsolver(c)
+    assert linsolver == "band" and order.perm is not None
+    lb, ub = _band_widths(c, order)
+    solver = ida_native.NativeIDA(c, 1e-6, np.full(N, 1e-8), "band", order, None, 5, 500, lb, ub)
+    K, lib = solver.K, solver.lib
+    assert solver._jac is K.jacobian_band
+    A = solver._opts[2]
+    s_mu, ldim, ldata = lib.band_smu(A), lib.band_ldim(A), lib.band_ldata(A)
+    data = np.ctypeslib.as_array(ctypes.cast(lib.band_data(A), ctypes.POINTER(ctypes.c_double)), (ldata,))
+    z = np.zeros(N)
+    mode_sets = list(itertools.product((STUCK, FORWARD, BACKWARD, FREE), repeat=c.mf)) if c.mf else [None]
+    for modes in mode_sets[:: max(1, len(mode_sets) // 40)]:
+        if modes is not None:
+            modes = np.array(modes)
+            jc, jcj = ida_native.friction_jacobian(c, modes)
+            solver.fdata[solver._jc], solver.fdata[solver._jcj] = jc, jcj
+        for cj in (0.0, 1.0, 3.7e4):
+            data[:] = np.nan             # every place of the storage is written (zero outside the pattern)
+            assert K.jacobian_band.ctypes(0.0, cj, None, None, None, A, solver.user.ctypes.data, None, None,
+                                          None) == 0
+            got = np.zeros((N, N))
+            for j in range(N):
+                for i in range(max(0, j - ub), min(N, j + lb + 1)):
+                    got[i, j] = data[j * ldim + i - j + s_mu]
+            want = np.zeros((N, N))
+            want[c.jac.rows, c.jac.cols] = c.jacobian_data(0.0, z, z, cj, modes)
+            want = want[order.perm][:, order.perm]
+            # (the kernel forms jc + cj jcj, the system its own sum: the same to round-off)
+            np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-14 * max(1.0, float(np.abs(want).max())))
+            assert np.array_equal(got != 0, want != 0)
+            assert not np.isnan(data).any()

@@ -561,15 +561,16 @@ class CompiledSystem:
         a, lam, dz = self.accelerations(t, x, v, z, modes) if known is None else known
         y = np.zeros(self.N)
         yp = np.zeros(self.N)
-        y[self.ix], y[self.iv], y[self.iad], y[self.ilam], y[self.iz] = x, v, a[self.Dv], lam, z
-        yp[self.ix], yp[self.iv], yp[self.iz] = v, a, dz
+        # (the index sets as slices: views, no gathers; the mode logic assembles a restart at every event)
+        y[self._sx], y[self._sv], y[self._sad], y[self._slam], y[self._sz] = x, v, a[self.Dv], lam, z
+        yp[self._sx], yp[self._sv], yp[self._sz] = v, a, dz
         if rates and (len(self.iad) or self.m):
             d = 1e-7 * max(1.0, abs(t))
             if t + d < self._t_right:
                 a2, lam2, _ = self.accelerations(t + d, x + d * v, v + d * a, z + d * dz, modes)
-                yp[self.iad] = (a2[self.Dv] - a[self.Dv]) / d
-                yp[self.ilam] = (lam2 - lam) / d
-        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(yp))):
+                yp[self._sad] = (a2[self.Dv] - a[self.Dv]) / d
+                yp[self._slam] = (lam2 - lam) / d
+        if not (np.isfinite(y).all() and np.isfinite(yp).all()):
             bad = [self.structure.coord_names[k] for k in range(self.n)
                    if not (np.isfinite(a[k]) and np.isfinite(x[k]) and np.isfinite(v[k]))]
             raise SimulationError(f"non-finite initial values at t={t} (involving {bad or 'device states'}); "

@@ -170,7 +170,7 @@ class Holding:
                 return trial
         return None
 
-    def _relief_events(self, t, y, yp, modes, scale):
+    def _relief_events(self, t, y, yp, modes, scale, view):
         """Event rows for devices sliding at zero speed while one stuck device holds their motion.
 
         Such a device (a holder that passed its capacity, see ``_share_redundant``) acts with
@@ -182,24 +182,20 @@ class Holding:
         tolerance (1e-9 of the device's torque, so that it starts positive when the holder's
         share starts at zero) and crosses zero when the load has fallen below the device's
         kinetic torque: the device then sticks again. With several holders of one motion no
-        function is set (the device stays sliding until its own speed leaves zero).
+        function is set (the device stays sliding until its own speed leaves zero). ``view``: the
+        restart's relative speeds and accelerations (``ModeLogic._restart_view``).
         """
         c = self.c
-        m = np.asarray(modes)
-        if not (np.any(m == STUCK) and np.any((m == FORWARD) | (m == BACKWARD))):
-            return []            # no device is sliding while another holds: nothing below can apply
-        x, v, a, lam_all, _ = c.unpack(y, yp)
-        w = self.w_rel(v)
-        arel = self.w_rel(a)
-        lam = lam_all[self.offset:]
+        ml = np.asarray(modes).tolist()
         # a device that has just broken away also has w_rel ~ 0, but it accelerates; only one whose
         # relative acceleration is zero as well can be held (the rank tests below are dense: keep them rare)
-        a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
+        w, arel, a_tol, _ = view
         sliding = [j for j in range(self.mf)
-                   if modes[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol]
-        stuck = [int(h) for h in np.nonzero(np.asarray(modes) == STUCK)[0]]
+                   if ml[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol]
+        stuck = [h for h in range(self.mf) if ml[h] == STUCK]
         if not sliding or not stuck:
-            return []
+            return []            # no device is sliding at rest while another holds: nothing below can apply
+        lam = c.unpack(y, yp)[3][self.offset:]
         rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
         G = self.G.toarray()
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._numbers import abs_max
 from ..errors import SimulationError, StructureError
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
 from .gears import gear_first_step
@@ -50,7 +51,7 @@ class ModeLogic:
         lam_rate = state[1][c.ilam[self.offset:]]        # d lam/dt at the event (IDA's interpolant)
         stop_side_old = self.stop_side.copy()      # hard stops' limits before this event
         self._impact_log = []
-        y, yp, new, scale = self._settle_once(t, state, old, crossed, initial, lam_rate)
+        y, yp, new, scale, view = self._settle_once(t, state, old, crossed, initial, lam_rate)
         # The modes settled here must be what the logic finds again at this instant with nothing crossed: a device
         # left sliding at zero slip, held by others, is re-stuck at the next event whatever it is (fuzz seed 102's
         # rule), and with several holders the outcome then differed (campaign seed 10169: a bearing re-stuck with
@@ -59,16 +60,16 @@ class ModeLogic:
         # its own answer until that changes nothing (bounded; a pair of answers taking turns keeps the later one).
         rerun = False
         for _ in range(3):
-            if not self._held_sliding(y, yp, new, scale):
+            if not self._held_sliding(view, new, scale):
                 break           # the usual case: nothing the logic would read differently (no second run)
             rerun = True
-            y2, yp2, again, scale = self._settle_once(t, (y, yp), new, None, False, lam_rate)
+            y2, yp2, again, scale, view2 = self._settle_once(t, (y, yp), new, None, False, lam_rate)
             if np.array_equal(again, new):
                 break
-            y, yp, new = y2, yp2, again
-        self._check_sliding_sides(t, y, yp, new, scale)
+            y, yp, new, view = y2, yp2, again, view2
+        self._check_sliding_sides(t, view, new, scale)
         if rerun:       # else ``_settle_once`` found them for this very (y, yp, new, scale)
-            self._relief = self._relief_events(t, y, yp, new, scale)
+            self._relief = self._relief_events(t, y, yp, new, scale, view)
         self._ev_key = None
         self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
         q = self.q_all(t, y) if self.has_inputs else None
@@ -78,7 +79,7 @@ class ModeLogic:
         self._impact_log = []
         if self._stops:
             lam_now = y[c.ilam]
-            self._stop_tol[:] = RELEASE_TOL * max(1.0, float(np.abs(lam_now).max(initial=0.0)))
+            self._stop_tol[:] = RELEASE_TOL * max(1.0, abs_max(lam_now))
         if not initial:
             for j, dev in enumerate(self.devices):
                 if j in self._stop_set:
@@ -113,12 +114,11 @@ class ModeLogic:
             n_log = len(self._impact_log)
             for j in self._stops:
                 new[j], v = self._stop_step(j, self.devices[j], int(old[j]), x, v, z, crossed, initial, t, 1e-9 *
-                                            max(1.0, float(np.abs(v).max(initial=0.0))))
+                                            max(1.0, abs_max(v)))
             impacted = len(self._impact_log) > n_log
         w = self.w_rel(v)
         arel = self.w_rel(a)
-        scale = 1e-9 * max(1.0, float(np.abs(v).max(initial=0.0)))
-        crossed = np.zeros(self.n_events) if crossed is None else np.asarray(crossed)
+        scale = 1e-9 * max(1.0, abs_max(v))
         # devices sliding at zero speed while another one holds the motion (see _relief_events):
         # their speed is zero by the holder's constraint, so its round-off sign says nothing;
         # only their relief event (or an event of the holder, below) changes them
@@ -126,7 +126,7 @@ class ModeLogic:
         for j in relief:
             w[j] = 0.0
         # round-off of the relative accelerations (a device at rest, held by others, has |a_rel| below it)
-        a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
+        a_tol = 1e-9 * max(1.0, abs_max(a))
         # 1. engagement and the crossings that were found
         for j, dev in enumerate(self.devices):
             if j in self._stop_set:
@@ -255,7 +255,7 @@ class ModeLogic:
             # its holding torque against the capacity under the other devices' new modes.
             if not changed:
                 w_now, a_now = self.w_rel(v), self.w_rel(a)
-                a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
+                a_tol = 1e-9 * max(1.0, abs_max(a))
                 for j, dev in enumerate(self.devices):
                     if (new[j] in (FORWARD, BACKWARD) and abs(w_now[j]) <= scale
                             and new[j] * a_now[j] < -a_tol):
@@ -304,9 +304,20 @@ class ModeLogic:
             raise SimulationError(self._unsettled_message(t, changed_in, passes))
         # the last pass solved the accelerations of the settled modes at (t, x, v, z): the restart reuses them
         y, yp = self._assemble_restart(t, x, v, z, new, lam, known)
+        view = self._restart_view(y, yp)
         # the relief events of the modes found (a repeated run reads them as the segment's)
-        self._relief = self._relief_events(t, y, yp, new, scale)
-        return y, yp, new, scale
+        self._relief = self._relief_events(t, y, yp, new, scale, view)
+        return y, yp, new, scale, view
+
+    def _restart_view(self, y, yp):
+        """``(w, arel, a_tol, w_max)`` of a restart state, as Python floats: the relative speeds and accelerations
+        of the rows, the round-off of the accelerations (1e-9 of the largest, at least 1e-9) and the largest
+        |w_rel|. The checks after the logic (``_held_sliding``, ``_check_sliding_sides``, ``_relief_events``)
+        all read these; computed once per restart (a few microseconds each on a small model)."""
+        _, v, a, _, _ = self.c.unpack(y, yp)
+        w = self.w_rel(v).tolist()
+        a_tol = 1e-9 * max(1.0, abs_max(a))
+        return w, self.w_rel(a).tolist(), a_tol, max(map(abs, w), default=0.0)
 
     def _probe_breakaways(self, t, x, v, z, modes, a, lam, dz, left):
         """``[(j, direction)]``: the stuck devices at the edge of their capacity (within ``PROBE_EDGE`` of it)
@@ -375,18 +386,19 @@ class ModeLogic:
         dt = PROBE_DT * max(1.0, abs(t))
         return (self._call(dev, "capacities", qj, t + dt, left)[1] - tau0_max) / dt
 
-    def _held_sliding(self, y, yp, modes, scale):
+    def _held_sliding(self, view, modes, scale):
         """Whether a device slides at zero slip with no relative acceleration (held there by others) and no
         relief event: step 1 of the logic re-sticks such a device at any event, so a settled set containing
-        one must be checked by a second run (``settle``)."""
-        _, v, a, _, _ = self.c.unpack(y, yp)
-        w, arel = self.w_rel(v), self.w_rel(a)
-        a_tol = 1e-9 * max(1.0, float(np.abs(a).max(initial=0.0)))
-        relief = {j for j, *_ in self._relief}
+        one must be checked by a second run (``settle``). ``view``: ``_restart_view`` of the restart."""
+        w, arel, a_tol, _ = view
         m = np.asarray(modes)
+        ml = m.tolist()
         at_rest = [j for j, dev in enumerate(self.devices)
-                   if m[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol
-                   and j not in relief and not dev.coupled and not dev.one_way]
+                   if ml[j] in (FORWARD, BACKWARD) and abs(w[j]) <= scale and abs(arel[j]) <= a_tol
+                   and not dev.coupled and not dev.one_way]
+        if at_rest and self._relief:
+            relief = {j for j, *_ in self._relief}
+            at_rest = [j for j in at_rest if j not in relief]
         if not at_rest:
             return False
         # held: its motion is fixed by the rigid rows and the stuck devices (a device that has just broken away
@@ -395,7 +407,7 @@ class ModeLogic:
         stuck = [int(k) for k in np.nonzero(m == STUCK)[0]]
         return any(self._fixed_by(stuck, j) for j in at_rest)
 
-    def _check_sliding_sides(self, t, y, yp, modes, scale):
+    def _check_sliding_sides(self, t, view, modes, scale):
         """Refuse a restart with a device sliding (or a lossy gear rolling) against its own direction beyond
         round-off.
 
@@ -403,11 +415,12 @@ class ModeLogic:
         event function, already past zero, would never fire: the run would go on silently wrong (fuzz
         seed 37 before the rule of step 1 above was fixed). Not reachable by the rules above; kept so
         that a gap in them is an error, never a wrong answer."""
-        w = self.w_rel(self.c.unpack(y, yp)[1])
-        for j, dev in enumerate(self.devices):
-            if modes[j] not in (FORWARD, BACKWARD):
+        w, _, _, w_max = view
+        limit = -max(scale, 1e-12 * w_max)
+        for j, (mode, dev) in enumerate(zip(np.asarray(modes).tolist(), self.devices)):
+            if mode not in (FORWARD, BACKWARD):
                 continue
-            if modes[j] * w[j] < -max(scale, 1e-12 * abs(w).max(initial=0.0)):
+            if mode * w[j] < limit:
                 raise SimulationError(
                     f"stick/slip logic at t={t:.9g}: '{dev.name}' would slide "
                     f"{'Forward' if modes[j] == FORWARD else 'Backward'} with w_rel = {w[j]:.6g}, against its own "

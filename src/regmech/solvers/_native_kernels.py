@@ -1,13 +1,14 @@
 """numba kernels of the native IDA path (``ida_native``); imported only when that path is used.
 
-The residual and the dense Jacobian are C callbacks (``numba.cfunc``) that SUNDIALS IDA calls directly,
+The residual and the dense and band Jacobians are C callbacks (``numba.cfunc``) that SUNDIALS IDA calls directly,
 with no Python in between; the output loop (``drive``) calls ``IDASolve`` once per output time from
 compiled code too. Everything a callback needs is in arrays whose addresses IDA passes as its user data, an int64 array
 ``[idata, fdata, hi, hf, ctl, clock_gettime]`` (``hi``, ``hf``: 0 without friction; ``ctl``: the wall-clock
 limit, ``_past_deadline``):
 
 * ``idata`` (int64): ``[N, W, n_sig, n_jac, off_indptr, off_indices, off_perm, off_kind, off_slot,
-  off_jk, length]`` and the arrays those offsets point to;
+  off_jk, length, band_ldata, band_offset]`` and the arrays those offsets point to (the last two: the band
+  Jacobian's storage, ``jacobian_band``; 0 otherwise);
 * ``fdata`` (float64): ``[t_right, off_data, off_par, off_buf, off_jc, off_jcj, length]`` and the arrays;
 * for a model with friction devices (``residual_friction``, ``events``), a second pair, ``hi`` (int64:
   ``[mf, off_row, off_sptr, off_sidx, off_wptr, off_widx, off_lam_buf, off_lam_sol, off_sig_kind, off_mode,
@@ -281,6 +282,27 @@ def jacobian_dense(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
     jc, jcj = int(fh[4]), int(fh[5])
     J = carray(_f64p(_second_pointer(_address(jac))), (N * N,))
     for k in range(N * N):
+        J[k] = 0.0
+    for q in range(n_jac):
+        J[idata[jk + q]] = fdata[jcj + q] * cj + fdata[jc + q]
+    return 0
+
+
+@cfunc(_JAC_SIG, cache=True)
+def jacobian_band(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
+    """``dF/dy + cj dF/dy'`` of the linear residual into a band SUNMatrix: the constant entries ``jc + cj jcj``
+    at their places in the band storage, ``idata[jk + q]`` (``ida_native._band_places``); the storage's length
+    (``ldata``) and the byte offset of its data pointer in the matrix's content are header slots 11 and 12."""
+    ud = carray(_i64p(_address(user_data)), (2,))
+    ih = carray(_i64p(ud[0]), (13,))
+    idata = carray(_i64p(ud[0]), (ih[10],))
+    fh = carray(_f64p(ud[1]), (7,))
+    fdata = carray(_f64p(ud[1]), (int(fh[6]),))
+    n_jac, jk, ldata, offset = ih[3], ih[9], ih[11], ih[12]
+    jc, jcj = int(fh[4]), int(fh[5])
+    content = carray(_i64p(_address(jac)), (1,))[0]
+    J = carray(_f64p(carray(_i64p(content + offset), (1,))[0]), (ldata,))
+    for k in range(ldata):
         J[k] = 0.0
     for q in range(n_jac):
         J[idata[jk + q]] = fdata[jcj + q] * cj + fdata[jc + q]

@@ -232,7 +232,16 @@ def state_columns(c) -> np.ndarray:
     return np.array([col for _, col in _state_signals(c)], dtype=np.intp)
 
 
-def _state_signals(c) -> list:
+def _state_signals(c) -> tuple:
+    """``(StateLabel, column of y)`` per state signal of a compiled system, kept with it (fixed by its
+    structure; 0.4 ms on a chain of 100 inertias, asked twice by every call with ``accuracy``)."""
+    got = c.__dict__.get("_contract_state_signals")
+    if got is None:
+        got = c._contract_state_signals = tuple(_find_state_signals(c))
+    return got
+
+
+def _find_state_signals(c) -> list:
     st = c.structure
     out = []
     for level, cols in ((0, c.ix), (1, c.iv)):

@@ -90,6 +90,10 @@ class _Libraries:
         self.ls_dense = sig(lsdense.SUNLinSol_Dense, vp, vp, vp, vp)
         self.band = sig(band.SUNBandMatrix, vp, idx, idx, idx, vp)
         self.ls_band = sig(lsband.SUNLinSol_Band, vp, vp, vp, vp)
+        self.band_data = sig(band.SUNBandMatrix_Data, vp, vp)
+        self.band_ldata = sig(band.SUNBandMatrix_LData, idx, vp)
+        self.band_ldim = sig(band.SUNBandMatrix_LDim, idx, vp)
+        self.band_smu = sig(band.SUNBandMatrix_StoredUpperBandwidth, idx, vp)
         self.mat_free = sig(core.SUNMatDestroy, None, vp)
         self.ls_free = sig(core.SUNLinSolFree, i32, vp)
         self.create = sig(ida.IDACreate, vp, vp)
@@ -137,8 +141,27 @@ class _Libraries:
             finally:
                 self.nv_free(v)
                 self.mat_free(m)
+            self.band_data_offset = self._band_data_offset(ctx)
         finally:
             self.ctx_free(ctypes.byref(ctx))
+
+
+    def _band_data_offset(self, ctx):
+        """The byte offset of a band SUNMatrix's data pointer in its content (``jacobian_band`` reads it there),
+        found against the library's accessor; None when not found (band runs then take IDA's difference
+        quotients, as before)."""
+        m = self.band(5, 1, 1, ctx)
+        if not m:
+            return None
+        try:
+            content = ctypes.c_void_p.from_address(m).value
+            data = self.band_data(m)
+            for offset in range(8, 72, 8):
+                if ctypes.c_void_p.from_address(content + offset).value == data:
+                    return offset
+            return None
+        finally:
+            self.mat_free(m)
 
 
 def libraries():
@@ -301,7 +324,30 @@ def _release(lib, handles):
         pass
 
 
-def _layout(c, linsolver, order):
+def _band_storage(N, lband, uband):
+    """``(s_mu, ldim)`` of SUNDIALS' band matrix of N unknowns with these bandwidths: the stored upper
+    bandwidth (room for the LU's fill-in) and the column length (checked against the library's accessors
+    when a solver is made)."""
+    s_mu = min(N - 1, uband + lband)
+    return s_mu, s_mu + lband + 1
+
+
+def _band_places(c, order, lband, uband):
+    """Where each constant Jacobian entry (``c.jac.rows[q]``, ``c.jac.cols[q]``, compiled order) sits in the band
+    storage of the solver's ordering: column j (solver order) starts at ``j ldim``, row i lies ``i - j + s_mu``
+    into it (SUNDIALS' ``SM_COLUMN_ELEMENT_B``). Every entry lies within the band (the bandwidths come from this
+    pattern, ``ida._band_widths``)."""
+    N = c.N
+    inv = np.arange(N) if order.perm is None else np.asarray(order.inv, np.int64)
+    i = inv[np.asarray(c.jac.rows, np.int64)]
+    j = inv[np.asarray(c.jac.cols, np.int64)]
+    if np.any(i - j > lband) or np.any(j - i > uband):
+        raise ValueError("a Jacobian entry outside the band")          # pragma: no cover - bandwidths of this pattern
+    s_mu, ldim = _band_storage(N, lband, uband)
+    return j * ldim + (i - j + s_mu)
+
+
+def _layout(c, linsolver, order, lband=0, uband=0):
     """The kernels' ``(idata, fdata)`` for compiled system ``c`` (``_native_kernels`` module docstring)."""
     import scipy.sparse as sp
     plan = c._plan
@@ -311,20 +357,26 @@ def _layout(c, linsolver, order):
     L.sum_duplicates()
     perm = np.arange(N) if order.perm is None else np.asarray(order.perm, np.int64)
     jk = jc = jcj = np.zeros(0)
-    if linsolver == "dense":
-        # constant iteration-matrix entries (an eligible model has no nonlinear weights), column-major;
-        # entry q of the Jacobian data sits at (jac.rows[q], jac.cols[q]), each once
+    band_ldata = 0
+    if linsolver in ("dense", "band"):
+        # constant iteration-matrix entries (an eligible model has no nonlinear weights); entry q of the Jacobian
+        # data sits at (jac.rows[q], jac.cols[q]), each once: dense column-major, band in its storage
         c.jacobian_data(0.0, np.zeros(N), np.zeros(N), 0.0, c.modes0)      # builds the Jacobian plan
         jp = c._jac_plan
-        jk = np.asarray(c.jac.cols, np.int64) * N + np.asarray(c.jac.rows, np.int64)
+        if linsolver == "dense":
+            jk = np.asarray(c.jac.cols, np.int64) * N + np.asarray(c.jac.rows, np.int64)
+        else:
+            jk = _band_places(c, order, lband, uband)
+            band_ldata = N * _band_storage(N, lband, uband)[1]
         jc, jcj = np.asarray(jp.const, float), np.asarray(jp.cjv, float)
     parts_i = [L.indptr, L.indices, perm, kinds, slots, jk]
-    offs_i, pos = [], 11
+    offs_i, pos = [], 13
     for a in parts_i:
         offs_i.append(pos)
         pos += len(a)
-    idata = np.concatenate([np.array([N, plan.width, len(kinds), len(jk)] + offs_i + [pos], np.int64)] +
-                           [np.asarray(a, np.int64) for a in parts_i])
+    # header: sizes, offsets, the length, then the band Jacobian's storage length and data offset (set per solver)
+    idata = np.concatenate([np.array([N, plan.width, len(kinds), len(jk)] + offs_i + [pos, band_ldata, 0],
+                                     np.int64)] + [np.asarray(a, np.int64) for a in parts_i])
     buf = np.zeros(plan.width)
     buf[plan.one] = 1.0
     parts_f = [L.data, pars, buf, jc, jcj]
@@ -434,10 +486,10 @@ class NativeIDA:
         self.lib, self.K, self.c = lib, K, c
         N = c.N
         self.N = N
-        key = (linsolver, None if order.perm is None else tuple(order.perm))
+        key = (linsolver, None if order.perm is None else tuple(order.perm), int(lband), int(uband))
         layout = c.__dict__.setdefault("_native_layouts", {}).get(key)
         if layout is None:
-            layout = c._native_layouts[key] = _layout(c, linsolver, order)
+            layout = c._native_layouts[key] = _layout(c, linsolver, order, int(lband), int(uband))
         self.idata, self.fdata = layout[0].copy(), layout[1].copy()      # the kernels write into fdata
         self.friction = None
         # the wall-clock limit (deadline in ns of time.monotonic, 0: none), the flag the residual sets past it, and
@@ -455,10 +507,9 @@ class NativeIDA:
         if c.mf:
             self._rootdir = np.full(2 * c.mf, -1, np.int32)
             self.rootsfound = np.zeros(2 * c.mf, np.int32)
-            if linsolver == "dense":
-                hdr = self.fdata[:7]
-                self._jc = slice(int(hdr[4]), int(hdr[5]))
-                self._jcj = slice(int(hdr[5]), int(hdr[6]))
+            hdr = self.fdata[:7]
+            self._jc = slice(int(hdr[4]), int(hdr[5]))
+            self._jcj = slice(int(hdr[5]), int(hdr[6]))
         ctx = ctypes.c_void_p()
         if lib.ctx_create(0, ctypes.byref(ctx)) != 0:
             raise SimulationError(f"the native IDA path could not create a SUNDIALS context for model "
@@ -474,6 +525,15 @@ class NativeIDA:
         else:
             A = lib.band(N, int(uband), int(lband), ctx)
             LS = lib.ls_band(yy, A, ctx)
+        # the band Jacobian in closed form (``jacobian_band``) where the storage is as ``_band_places`` placed it;
+        # else IDA's difference quotients, lband + uband + 1 residuals per Jacobian (a sixth of the residuals of
+        # a run on the benchmark chains)
+        self._jac = K.jacobian_dense if linsolver == "dense" else None
+        if linsolver == "band" and A and lib.band_data_offset is not None and \
+                (lib.band_smu(A), lib.band_ldim(A)) == _band_storage(N, int(lband), int(uband)) and \
+                lib.band_ldata(A) == self.idata[11]:
+            self.idata[12] = lib.band_data_offset
+            self._jac = K.jacobian_band
         mem = lib.create(ctx)
         if not (yy and yp and at and idv and A and LS and mem):
             raise SimulationError(f"SUNDIALS could not allocate the native IDA solver for model '{c.model.name}' "
@@ -519,7 +579,7 @@ class NativeIDA:
             return
         fr = self.c.friction
         self.friction.set_segment(modes, fr.engaged, fr._relief)
-        if self._opts[1] == "dense":
+        if self._jac is not None:
             jc, jcj = friction_jacobian(self.c, modes)
             self.fdata[self._jc] = jc
             self.fdata[self._jcj] = jcj
@@ -533,8 +593,8 @@ class NativeIDA:
                  lib.init(mem, res.address, t0, self.yy, self.yp),
                  lib.tolerances(mem, rtol, self._at),
                  lib.set_ls(mem, LS, A)]
-        if linsolver == "dense":
-            flags.append(lib.set_jac(mem, K.jacobian_dense.address))
+        if self._jac is not None:
+            flags.append(lib.set_jac(mem, self._jac.address))
         flags += [lib.set_int["IDASetMaxNonlinIters"](mem, 4), lib.set_int["IDASetMaxConvFails"](mem, 10),
                   lib.set_id(mem, self._id), lib.set_real["IDASetInitStep"](mem, 0.0),
                   lib.set_real["IDASetMinStep"](mem, 0.0),

@@ -140,12 +140,19 @@ def state_labels(c) -> list[StateLabel]:
     return labels
 
 
-def kind_members(labels) -> list[list[int]]:
-    """The indices of the labels of each kind of state, in the order the kinds first appear."""
-    kinds: dict = {}
-    for i, lab in enumerate(labels):
-        kinds.setdefault(lab.kind, []).append(i)
-    return list(kinds.values())
+def kind_members(labels) -> list[np.ndarray]:
+    """The indices of the labels of each kind of state (index arrays), in the order the kinds first appear."""
+    return list(_members_of_kinds(tuple(lab.kind for lab in labels)))
+
+
+@functools.lru_cache(maxsize=64)
+def _members_of_kinds(kinds: tuple) -> tuple:
+    """``kind_members`` of a sequence of kinds, kept: the contract asks it several times per call of the same
+    model (a tenth of a millisecond each on a chain of 100 inertias); the arrays are read, never written."""
+    groups: dict = {}
+    for i, kind in enumerate(kinds):
+        groups.setdefault(kind, []).append(i)
+    return tuple(np.array(g, dtype=np.intp) for g in groups.values())
 
 
 def kind_scales(labels, values: np.ndarray) -> np.ndarray:
