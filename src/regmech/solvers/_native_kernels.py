@@ -91,6 +91,50 @@ def _call_clock(typingctx, fn, clock_id, ts):
     return types.int32(fn, clock_id, ts), codegen
 
 
+def _ida_codegen(arg_kinds):
+    """The code of a call ``int f(void *mem, ...)`` through its address, the further arguments of the kinds
+    ``"d"`` (double) and ``"p"`` (a pointer given as an integer): the few SUNDIALS calls of a segment
+    (``segment``) made from compiled code, as ``_call_ida_solve`` makes IDASolve's."""
+    def codegen(context, builder, signature, values):
+        vp = ir.IntType(8).as_pointer()
+        arg_types = [vp] + [ir.DoubleType() if k == "d" else vp for k in arg_kinds]
+        f = builder.inttoptr(values[0], ir.FunctionType(ir.IntType(32), arg_types).as_pointer())
+        call_args = [builder.inttoptr(values[1], vp)] + [
+            v if k == "d" else builder.inttoptr(v, vp) for k, v in zip(arg_kinds, values[2:])]
+        return builder.call(f, call_args)
+    return codegen
+
+
+@intrinsic
+def _call_p(typingctx, fn, mem):
+    """IDAClearStopTime(mem)"""
+    return types.int32(fn, mem), _ida_codegen(())
+
+
+@intrinsic
+def _call_p_d(typingctx, fn, mem, a):
+    """IDASetStopTime(mem, tstop)"""
+    return types.int32(fn, mem, a), _ida_codegen(("d",))
+
+
+@intrinsic
+def _call_p_p(typingctx, fn, mem, a):
+    """IDAGetNum...(mem, long *), IDAGetRootInfo(mem, int *)"""
+    return types.int32(fn, mem, a), _ida_codegen(("p",))
+
+
+@intrinsic
+def _call_p_d_p(typingctx, fn, mem, a, b):
+    """IDASVtolerances(mem, rtol, atol)"""
+    return types.int32(fn, mem, a, b), _ida_codegen(("d", "p"))
+
+
+@intrinsic
+def _call_p_d_p_p(typingctx, fn, mem, a, b, c):
+    """IDAReInit(mem, t0, yy, yp)"""
+    return types.int32(fn, mem, a, b, c), _ida_codegen(("d", "p", "p"))
+
+
 CLOCK_MONOTONIC = 1      # Linux: the clock of Python's time.monotonic()
 
 
@@ -331,3 +375,33 @@ def drive(solve_fn, mem, tspan, tret, yy, yp, y_addr, yp_addr, perm, T, Y, YP):
         if flag < 0 or flag == 1 or flag == 2:
             break
     return k, flag
+
+
+#: the SUNDIALS functions ``segment`` calls, in the order of its ``fns`` argument (``ida_native.NativeIDA``)
+SEGMENT_FUNCTIONS = ("IDASolve", "IDAReInit", "IDASVtolerances", "IDASetStopTime", "IDAClearStopTime",
+                     "IDAGetNumResEvals", "IDAGetNumJacEvals", "IDAGetNumSteps", "IDAGetRootInfo")
+
+
+@njit(cache=True)
+def segment(fns, mem, reinit, new_tol, rtol, atol_nv, tspan, tret, yy, yp, y_addr, yp_addr, perm, T, Y, YP,
+            counts, roots):
+    """One segment of a native run in one call from Python (each ctypes call costs about a microsecond, and a
+    friction model's run has a segment per event): IDAReInit at ``tspan[0]`` from the values in yy, yp (when
+    ``reinit``), the tolerances (when ``new_tol``), the stop time ``tspan[-1]``, ``drive``, IDAClearStopTime,
+    then IDA's counts of residuals, Jacobians and steps into ``counts`` (int64, C long) and, at a root, its
+    root information into ``roots`` (int32). Returns ``(rows, flag)`` as ``drive``; a failed call k of
+    ``SEGMENT_FUNCTIONS`` gives ``(0, -1000 - k)``."""
+    if reinit and _call_p_d_p_p(fns[1], mem, tspan[0], yy, yp) < 0:
+        return 0, -1001
+    if new_tol and _call_p_d_p(fns[2], mem, rtol, atol_nv) < 0:
+        return 0, -1002
+    if _call_p_d(fns[3], mem, tspan[tspan.size - 1]) < 0:
+        return 0, -1003
+    rows, flag = drive(fns[0], mem, tspan, tret, yy, yp, y_addr, yp_addr, perm, T, Y, YP)
+    _call_p(fns[4], mem)
+    base = counts.ctypes.data
+    for k in range(3):
+        _call_p_p(fns[5 + k], mem, base + 8 * k)
+    if flag == 2 and _call_p_p(fns[8], mem, roots.ctypes.data) < 0:
+        return rows, -1008
+    return rows, flag

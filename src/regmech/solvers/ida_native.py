@@ -120,6 +120,11 @@ class _Libraries:
         self.n_steps = sig(ida.IDAGetNumSteps, i32, vp, ctypes.POINTER(lng))
         self.free = sig(ida.IDAFree, None, ctypes.POINTER(vp))
         self.solve_address = ctypes.cast(ida.IDASolve, vp).value
+        # the addresses ``_native_kernels.segment`` calls; it writes IDA's counters as 64-bit C longs
+        if ctypes.sizeof(ctypes.c_long) != 8:
+            raise OSError("a C long of another size than 8 bytes")
+        self.segment_functions = np.array([ctypes.cast(getattr(ida, name), vp).value for name in K.SEGMENT_FUNCTIONS],
+                                          np.int64)
         self._check_layout()
 
     def _check_layout(self):
@@ -558,7 +563,9 @@ class NativeIDA:
         # steps taken in the last solve, as the usual path's counter (``ida._make_solver``) reports them:
         # here IDA's own count of accepted steps (IDAReInit sets it back to zero)
         self.regmech_attempts = [None, 0]
-        self._counts = None
+        self._counts = np.zeros(3, np.int64)       # IDA's residuals, Jacobians and steps (``segment`` writes them)
+        self._roots = self.rootsfound if c.mf else np.zeros(1, np.int32)
+        self._new_tolerances = False
         self._atol = np.ctypeslib.as_array(ctypes.cast(lib.nv_ptr(at), ctypes.POINTER(ctypes.c_double)), (N,))
 
     def start_run(self, deadline):
@@ -613,41 +620,31 @@ class NativeIDA:
         self.fdata[0] = self.c._t_right
         self.ya[:] = y0
         self.ypa[:] = yp0
-        lib = self.lib
-        if not self._initialised:
+        reinit = self._initialised
+        if not reinit:
             self._setup(float(tspan[0]))
-        else:
-            if lib.reinit(self.mem, float(tspan[0]), self.yy, self.yp) < 0:
-                raise RuntimeError("IDAReInit failed")
-            if getattr(self, "_new_tolerances", False) and lib.tolerances(self.mem, self._opts[0], self._at) < 0:
-                raise RuntimeError("IDASVtolerances failed")
+        new_tol = reinit and self._new_tolerances
         self._new_tolerances = False
-        if lib.set_real["IDASetStopTime"](self.mem, float(tspan[-1])) < 0:
-            raise RuntimeError("IDASetStopTime failed")
         n = len(tspan)
         T = np.empty(n)
         Y = np.empty((n, self.N))
         YP = np.empty((n, self.N))
         T[0] = tspan[0]
         Y[0, self.perm], YP[0, self.perm] = self.ya, self.ypa
-        rows, flag = self.K.drive(self.lib.solve_address, self.mem, tspan, self.tret, self.yy, self.yp,
-                                  self.ya_address, self.ypa_address, self.perm, T, Y, YP)
-        lib.clear_stop(self.mem)
+        # re-initialisation, tolerances, stop time, the output loop and IDA's counters in one compiled call
+        rows, flag = self.K.segment(self.lib.segment_functions, self.mem, reinit, new_tol, self._opts[0], self._at,
+                                    tspan, self.tret, self.yy, self.yp, self.ya_address, self.ypa_address,
+                                    self.perm, T, Y, YP, self._counts, self._roots)
+        if flag <= -1000:
+            raise RuntimeError(f"{self.K.SEGMENT_FUNCTIONS[-1000 - flag]} failed")
         if self.ctl[1]:
             # the residual stopped IDA at the run's wall-clock limit
             raise self.deadline.error(float(T[rows - 1]))
-        counts = self._counts
-        if counts is None:
-            counts = self._counts = [(ctypes.c_long(), f) for f in (lib.n_res, lib.n_jac, lib.n_steps)]
-        for cell, f in counts:
-            f(self.mem, ctypes.byref(cell))
-        nf, nj, ns = (cell.value for cell, _ in counts)
-        self.regmech_attempts[1] += int(ns)
-        out = _Result(T[:rows], Y[:rows], YP[:rows], int(flag), int(nf), int(nj), unpermuted=True)
+        nf, nj, ns = self._counts.tolist()
+        self.regmech_attempts[1] += ns
+        out = _Result(T[:rows], Y[:rows], YP[:rows], flag, nf, nj, unpermuted=True)
         if flag == 2:            # a root: the last row is the state there (scikit-sundae's event arrays)
-            if lib.root_info(self.mem, self.rootsfound.ctypes.data) < 0:
-                raise RuntimeError("IDAGetRootInfo failed")
-            out.i_events = self.rootsfound.copy()[None, :]
+            out.i_events = self._roots.copy()[None, :]
             out.t_events = T[rows - 1:rows].copy()
             out.y_events, out.yp_events = Y[rows - 1:rows].copy(), YP[rows - 1:rows].copy()
         return out
