@@ -27,6 +27,7 @@ class FrictionSet(ModeLogic, EventFunctions, Holding, Impacts, GearSides, Fricti
         fs._setup_impacts()
         fs._setup_events()
         fs._flips = set()
+        fs._law_memo = {}         # ModeLogic._law (per settle)
         return fs
 
     def chatter_guard(self, window=None, count=50):

@@ -41,6 +41,7 @@ class ModeLogic:
         old and new are the driving flange, ``LossyGear.driving_flange``).
         """
         c = self.c
+        self._law_memo = {}           # ``_law``: the laws of devices without inputs at this instant
         if initial:
             self.quadrant[:] = 1      # a fresh start decides the driving sides from the state alone
         side_old = [d.driving_flange(m0, q) if d.coupled else 0
@@ -73,8 +74,7 @@ class ModeLogic:
         self._ev_key = None
         self._small_for = self._at_segment = None      # the event functions' plans belong to a segment
         q = self.q_all(t, y) if self.has_inputs else None
-        self.engaged = np.array([self._call(d, "normal_force", None if q is None else q[j], t, False) > 0
-                                 for j, d in enumerate(self.devices)])
+        self.engaged = np.array([self._law("normal_force", j, q, t, False) > 0 for j in range(self.mf)])
         changes = list(self._impact_log)     # impacts of hard stops first (``impacts``), with their losses
         self._impact_log = []
         if self._stops:
@@ -131,7 +131,7 @@ class ModeLogic:
         for j, dev in enumerate(self.devices):
             if j in self._stop_set:
                 continue
-            engaged = self._call(dev, "normal_force", None if q is None else q[j], t, left) > 0
+            engaged = self._law("normal_force", j, q, t, left) > 0
             if dev.coupled:
                 new[j] = gear_first_step(dev, int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
                                          initial, scale, arel[j], impacted)
@@ -229,7 +229,7 @@ class ModeLogic:
                         changed = True
                     continue
                 qj = None if q is None else q[j]
-                tau0, tau0_max = self._call(dev, "capacities", qj, t, left)
+                tau0, tau0_max = self._law("capacities", j, q, t, left)
                 # a load within round-off of the capacity and still rising breaks away with the others
                 # (symmetric devices, e.g. two wheels on one open differential, reach it together)
                 tie = 1e-9 * tau0_max
@@ -304,17 +304,32 @@ class ModeLogic:
             raise SimulationError(self._unsettled_message(t, changed_in, passes))
         # the last pass solved the accelerations of the settled modes at (t, x, v, z): the restart reuses them
         y, yp = self._assemble_restart(t, x, v, z, new, lam, known)
-        view = self._restart_view(y, yp)
+        # (without lossy gears the restart holds these very v and a; with them its accelerations are solved again)
+        view = self._restart_view(y, yp, None if self._coupled_rows or known is None else (v, known[0]))
         # the relief events of the modes found (a repeated run reads them as the segment's)
         self._relief = self._relief_events(t, y, yp, new, scale, view)
         return y, yp, new, scale, view
 
-    def _restart_view(self, y, yp):
+    def _law(self, name, j, q, t, left):
+        """``devices[j].<name>(t, left[, q_j])`` (``normal_force``, ``capacities``): for a device without inputs
+        from the state (its laws depend on t and the side only) kept for the rest of this ``settle``, which asks
+        them at the same instant in each of its steps (a few microseconds a call)."""
+        qj = None if q is None else q[j]
+        if qj is not None:
+            return self._call(self.devices[j], name, qj, t, left)
+        key = (name, j, t, left)
+        got = self._law_memo.get(key)
+        if got is None:
+            got = self._law_memo[key] = self._call(self.devices[j], name, None, t, left)
+        return got
+
+    def _restart_view(self, y, yp, va=None):
         """``(w, arel, a_tol, w_max)`` of a restart state, as Python floats: the relative speeds and accelerations
         of the rows, the round-off of the accelerations (1e-9 of the largest, at least 1e-9) and the largest
         |w_rel|. The checks after the logic (``_held_sliding``, ``_check_sliding_sides``, ``_relief_events``)
-        all read these; computed once per restart (a few microseconds each on a small model)."""
-        _, v, a, _, _ = self.c.unpack(y, yp)
+        all read these; computed once per restart (a few microseconds each on a small model). ``va``: the
+        restart's speeds and accelerations when the caller has them (else read from y, y')."""
+        _, v, a, _, _ = self.c.unpack(y, yp) if va is None else (None, *va, None, None)
         w = self.w_rel(v).tolist()
         a_tol = 1e-9 * max(1.0, abs_max(a))
         return w, self.w_rel(a).tolist(), a_tol, max(map(abs, w), default=0.0)
@@ -345,7 +360,7 @@ class ModeLogic:
                 if min(hi - lam_f[j], lam_f[j] - lo) <= PROBE_EDGE * size:
                     edge.append(j)
             else:
-                tau0_max = self._call(dev, "capacities", None if q is None else q[j], t, left)[1]
+                tau0_max = self._law("capacities", j, q, t, left)[1]
                 if tau0_max - abs(lam_f[j]) <= PROBE_EDGE * max(tau0_max, 1e-300):
                     edge.append(j)
         if not edge:
