@@ -421,7 +421,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
         y, yp = _start_values(model, c, t_start, modes)
     events: list[Event] = []
     # the outputs read only the speeds' derivatives of y'
-    rec = Recorder(c.mf, capacity=len(grid) + 2 * len(bps) + 8, yp_cols=c.iv)
+    # room for the rows of a few dozen events too (each stores two rows): growing the recorder copies every row
+    rec = Recorder(c.mf, capacity=len(grid) + 2 * len(bps) + 8 + (EVENT_ROWS if fr else 0), yp_cols=c.iv)
     rec.add(t_start, y, yp, modes)
     t = t_start
     bp_iter = iter(bps + [t_end])
@@ -643,6 +644,10 @@ def _mass_constants(c) -> tuple:
         got = c._atol_masses = (float(c.mass.max(initial=1.0)), m_min, m_dummy)
     return got
 
+
+#: rows the recorder of a run with friction devices keeps room for beyond its output and breakpoint rows (two per
+#: event: CoupledClutches' 9 events grew it once per run, copying every row)
+EVENT_ROWS = 64
 
 #: the unit round-off (a module constant: ``np.finfo`` costs a microsecond per call)
 _EPS = float(np.finfo(float).eps)
