@@ -52,9 +52,13 @@ def describe(value) -> str:
 
 
 def abs_max(arr) -> float:
-    """``max |arr|`` of a 1-d float array as a Python float, 0 for an empty one: in Python for a short array,
-    where numpy's reduction costs more than the work (the solvers' and the mode logic's per-segment and
-    per-event checks on small models); the same value either way."""
+    """``max |arr|`` of a 1-d float array as a Python float, 0 for an empty one, NaN when it holds a NaN (as
+    numpy's reduction): in Python for a short array, where numpy's reduction costs more than the work (the
+    solvers' and the mode logic's per-segment and per-event checks on small models); the same value either
+    way."""
     if len(arr) <= 32:
-        return max(map(abs, arr.tolist()), default=0.0)
+        vals = arr.tolist()
+        if any(map(math.isnan, vals)):
+            return math.nan         # Python's max would keep or drop a NaN by where it stands
+        return max(map(abs, vals), default=0.0)
     return float(np.abs(arr).max(initial=0.0))

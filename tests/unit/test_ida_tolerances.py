@@ -194,3 +194,20 @@ def test_a_failing_repeated_run_says_what_was_repeated_and_the_remedy(monkeypatc
     monkeypatch.setattr(ida, "_run_ida", real)
     res = chain(0.3, friction=False).simulate(t_end=0.2, solver="ida", atol=suggested)
     assert "atol_rescaled" not in res.stats.extra
+
+
+def test_abs_max_agrees_with_numpy_for_short_and_long_arrays_nan_included():
+    """``_numbers.abs_max`` (the tolerances' and the mode logic's short-array shortcut) gives numpy's value:
+    the largest magnitude, 0 for an empty array, NaN wherever a NaN stands (Python's max alone would drop a NaN
+    that is not first)."""
+    import math
+    from regmech._numbers import abs_max
+    rng = np.random.default_rng(3)
+    for n in (0, 1, 5, 32, 33, 200):
+        x = rng.standard_normal(n) * 10.0 ** rng.integers(-5, 5, n)
+        assert abs_max(x) == float(np.abs(x).max(initial=0.0))
+        if n:
+            for k in {0, n // 2, n - 1}:
+                y = x.copy()
+                y[k] = np.nan
+                assert math.isnan(abs_max(y))

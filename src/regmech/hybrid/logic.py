@@ -329,7 +329,10 @@ class ModeLogic:
         |w_rel|. The checks after the logic (``_held_sliding``, ``_check_sliding_sides``, ``_relief_events``)
         all read these; computed once per restart (a few microseconds each on a small model). ``va``: the
         restart's speeds and accelerations when the caller has them (else read from y, y')."""
-        _, v, a, _, _ = self.c.unpack(y, yp) if va is None else (None, *va, None, None)
+        if va is None:
+            _, v, a, _, _ = self.c.unpack(y, yp)
+        else:
+            v, a = va
         w = self.w_rel(v).tolist()
         a_tol = 1e-9 * max(1.0, abs_max(a))
         return w, self.w_rel(a).tolist(), a_tol, max(map(abs, w), default=0.0)

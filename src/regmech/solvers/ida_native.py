@@ -98,7 +98,6 @@ class _Libraries:
         self.ls_free = sig(core.SUNLinSolFree, i32, vp)
         self.create = sig(ida.IDACreate, vp, vp)
         self.init = sig(ida.IDAInit, i32, vp, vp, d, vp, vp)
-        self.reinit = sig(ida.IDAReInit, i32, vp, d, vp, vp)
         self.tolerances = sig(ida.IDASVtolerances, i32, vp, d, vp)
         self.set_ls = sig(ida.IDASetLinearSolver, i32, vp, vp, vp)
         self.set_jac = sig(ida.IDASetJacFn, i32, vp, vp)
@@ -108,19 +107,14 @@ class _Libraries:
                         ("IDASetMaxNonlinIters", "IDASetMaxConvFails", "IDASetMaxOrd")}
         self.set_max_steps = sig(ida.IDASetMaxNumSteps, i32, vp, lng)
         self.set_real = {n: sig(getattr(ida, n), i32, vp, d) for n in
-                         ("IDASetInitStep", "IDASetMinStep", "IDASetMaxStep", "IDASetStopTime")}
-        self.clear_stop = sig(ida.IDAClearStopTime, i32, vp)
+                         ("IDASetInitStep", "IDASetMinStep", "IDASetMaxStep")}
         self.root_init = sig(ida.IDARootInit, i32, vp, i32, vp)
         self.root_direction = sig(ida.IDASetRootDirection, i32, vp, vp)
-        self.root_info = sig(ida.IDAGetRootInfo, i32, vp, vp)
         # the residual kernels read the monotonic clock for a run's wall-clock limit (``_native_kernels``)
         self.clock_address = ctypes.cast(ctypes.CDLL(None).clock_gettime, vp).value
-        self.n_res = sig(ida.IDAGetNumResEvals, i32, vp, ctypes.POINTER(lng))
-        self.n_jac = sig(ida.IDAGetNumJacEvals, i32, vp, ctypes.POINTER(lng))
-        self.n_steps = sig(ida.IDAGetNumSteps, i32, vp, ctypes.POINTER(lng))
         self.free = sig(ida.IDAFree, None, ctypes.POINTER(vp))
-        self.solve_address = ctypes.cast(ida.IDASolve, vp).value
-        # the addresses ``_native_kernels.segment`` calls; it writes IDA's counters as 64-bit C longs
+        # the addresses ``_native_kernels.segment`` calls (IDASolve, re-initialisation, tolerances, stop time, the
+        # counters, the root information); it writes IDA's counters as 64-bit C longs
         if ctypes.sizeof(ctypes.c_long) != 8:
             raise OSError("a C long of another size than 8 bytes")
         self.segment_functions = np.array([ctypes.cast(getattr(ida, name), vp).value for name in K.SEGMENT_FUNCTIONS],
@@ -149,7 +143,6 @@ class _Libraries:
             self.band_data_offset = self._band_data_offset(ctx)
         finally:
             self.ctx_free(ctypes.byref(ctx))
-
 
     def _band_data_offset(self, ctx):
         """The byte offset of a band SUNMatrix's data pointer in its content (``jacobian_band`` reads it there),
@@ -340,14 +333,15 @@ def _band_storage(N, lband, uband):
 def _band_places(c, order, lband, uband):
     """Where each constant Jacobian entry (``c.jac.rows[q]``, ``c.jac.cols[q]``, compiled order) sits in the band
     storage of the solver's ordering: column j (solver order) starts at ``j ldim``, row i lies ``i - j + s_mu``
-    into it (SUNDIALS' ``SM_COLUMN_ELEMENT_B``). Every entry lies within the band (the bandwidths come from this
-    pattern, ``ida._band_widths``)."""
+    into it (SUNDIALS' ``SM_COLUMN_ELEMENT_B``). None when an entry lies outside the band (the bandwidths come
+    from this pattern, ``ida._band_widths``, so it should not happen): the run then takes IDA's difference
+    quotients, whose columns outside the band are simply not formed."""
     N = c.N
     inv = np.arange(N) if order.perm is None else np.asarray(order.inv, np.int64)
     i = inv[np.asarray(c.jac.rows, np.int64)]
     j = inv[np.asarray(c.jac.cols, np.int64)]
     if np.any(i - j > lband) or np.any(j - i > uband):
-        raise ValueError("a Jacobian entry outside the band")          # pragma: no cover - bandwidths of this pattern
+        return None
     s_mu, ldim = _band_storage(N, lband, uband)
     return j * ldim + (i - j + s_mu)
 
@@ -371,8 +365,10 @@ def _layout(c, linsolver, order, lband=0, uband=0):
         if linsolver == "dense":
             jk = np.asarray(c.jac.cols, np.int64) * N + np.asarray(c.jac.rows, np.int64)
         else:
-            jk = _band_places(c, order, lband, uband)
-            band_ldata = N * _band_storage(N, lband, uband)[1]
+            places = _band_places(c, order, lband, uband)
+            if places is not None:        # else no closed-form Jacobian (band_ldata 0: ``NativeIDA`` checks it)
+                jk = places
+                band_ldata = N * _band_storage(N, lband, uband)[1]
         jc, jcj = np.asarray(jp.const, float), np.asarray(jp.cjv, float)
     parts_i = [L.indptr, L.indices, perm, kinds, slots, jk]
     offs_i, pos = [], 13

@@ -152,7 +152,10 @@ def _members_of_kinds(kinds: tuple) -> tuple:
     groups: dict = {}
     for i, kind in enumerate(kinds):
         groups.setdefault(kind, []).append(i)
-    return tuple(np.array(g, dtype=np.intp) for g in groups.values())
+    members = tuple(np.array(g, dtype=np.intp) for g in groups.values())
+    for m in members:
+        m.flags.writeable = False       # shared by every caller of the cache
+    return members
 
 
 def kind_scales(labels, values: np.ndarray) -> np.ndarray:
