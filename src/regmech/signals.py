@@ -77,7 +77,28 @@ def _finite_result(owner: str, what: str, value: float) -> None:
 
 
 class Signal:
-    """Base class: override ``value`` and ``derivative``; list ``breakpoints``."""
+    """Base class: override ``value`` and ``derivative``; list ``breakpoints``.
+
+    The library's signals (``Constant``, ``Step``, ``Ramp``, ``Sine``, ``Table``, ``Pulse``) are values:
+    their parameters are fixed when they are made. The compiled paths keep them (the native IDA kernels'
+    tables, the vectorised banks of many sines or steps), so a parameter changed in place would reach some
+    solvers and not others, and skip the checks of the constructor. Changing one raises a
+    ``ParameterError`` that says what to do instead: assign a new signal to the component's parameter
+    (``drive.tau = Sine(...)``), which recompiles the model."""
+
+    def __setattr__(self, name, value):
+        if self.__dict__.get("_frozen", False):
+            raise ParameterError(
+                f"{type(self).__name__}: parameter '{name}' cannot be changed in place (the compiled model keeps "
+                f"the signal's parameters). Make a new signal and assign it to the component's parameter, e.g. "
+                f"drive.tau = {type(self).__name__}(...); that recompiles the model.")
+        object.__setattr__(self, name, value)
+
+    def _freeze(self):
+        """Fix the parameters of a library signal (the end of its constructor; a user's subclass, whose own
+        attributes the library never keeps, stays free to set them)."""
+        if type(self).__module__ == __name__:
+            self._frozen = True
 
     def __call__(self, t: float, left: bool = False) -> float:
         return self.value(t, left)
@@ -121,6 +142,7 @@ class Constant(Signal):
 
     def __init__(self, value: float = 0.0):
         self.value_ = _finite("Constant", "value", value)
+        self._freeze()
 
     def value(self, t, left=False):
         return self.value_
@@ -146,6 +168,7 @@ class Step(Signal):
         self.start_time = _finite("Step", "start_time", start_time)
         self.offset = _finite("Step", "offset", offset)
         _finite_result("Step", "offset + height", self.offset + self.height)
+        self._freeze()
 
     def value(self, t, left=False):
         on = t > self.start_time if left else t >= self.start_time
@@ -179,6 +202,7 @@ class Ramp(Signal):
         _finite_result("Ramp", "start_time + duration", self.start_time + self.duration)
         if self.duration > 0:
             _finite_result("Ramp", "the slope height / duration", self.height / self.duration)
+        self._freeze()
 
     def _rising(self, t, left):
         t0, t1 = self.start_time, self.start_time + self.duration
@@ -218,6 +242,7 @@ class Sine(Signal):
         # the second derivative (a Position reference's acceleration) must be finite too
         w = 2.0 * math.pi * self.freq_hz
         _finite_result("Sine", "amplitude * (2 pi freq_hz)^2", self.amplitude * w * w)
+        self._freeze()
 
     def _on(self, t, left):
         return t > self.start_time if left else t >= self.start_time
@@ -277,6 +302,7 @@ class Table(Signal):
         self.points = arr
         self._t = arr[:, 0]
         self._v = arr[:, 1]
+        self._freeze()
 
     def _segment(self, t, left):
         # index k with t in piece [t_k, t_{k+1}); left limits use (t_k, t_{k+1}]
@@ -335,6 +361,7 @@ class Pulse(Signal):
         if self.period <= 0:
             raise ParameterError(f"Pulse: parameter 'period' must be > 0, got {period!r}")
         _finite_result("Pulse", "offset + amplitude", self.offset + self.amplitude)
+        self._freeze()
 
     def _pulse_start(self, k):
         return self.start_time + k * self.period

@@ -87,8 +87,10 @@ class CompiledSystem:
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
 
     # -------------------------------------------------------------- pickling
-    #: caches that hold SuperLU factorisations (not picklable) or plans derived from them; rebuilt on use
-    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form", "_native_solvers", "_reference_noise")
+    #: caches that hold SuperLU factorisations (not picklable), plans derived from them, or maps keyed by
+    #: ``id()`` of the structure's rows (``_output_maps``: other objects after unpickling); rebuilt on use
+    _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form", "_native_solvers", "_reference_noise",
+                  "_output_maps")
 
     def __getstate__(self):
         """Everything but the factorisation caches (``KernelGroup`` leaves out its lambdified template)."""

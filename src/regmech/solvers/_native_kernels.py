@@ -26,16 +26,14 @@ integers), so a process pays numba's start-up but no compilation after the first
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from llvmlite import ir
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
-# signal kinds (``ida_native.signal_table``)
-CONSTANT, SINE, STEP, RAMP = 0, 1, 2, 3
-N_PAR = 5
+# signal kinds and their formulas, shared with the ODE form's compiled right-hand side
+from ..compile._native_signals import CONSTANT, N_PAR, RAMP, SINE, STEP      # noqa: E402,F401
+from ..compile._native_signals import signal_value as _signal                 # noqa: E402
 # a friction device's first event function in the segment's modes (``hybrid.events``)
 EV_SLIDING, EV_STUCK, EV_CONSTANT = 0, 1, 2
 # the mode codes of ``regmech.modes`` (STUCK 0, FORWARD 1, BACKWARD -1; FREE and HELD carry no torque)
@@ -159,27 +157,6 @@ def _second_pointer(addr):
     serial N_Vector (``content->data``) and of a dense SUNMatrix, checked by ``ida_native`` at load."""
     content = carray(_i64p(addr), (1,))[0]
     return carray(_i64p(content + 8), (1,))[0]
-
-
-@njit(cache=True, inline="always")
-def _signal(kind, p, t, left):
-    """A signal's value at t, left limit when ``left``: the formulas of ``regmech.signals``."""
-    if kind == SINE:             # p = offset, amplitude, freq_hz, phase, start_time
-        on = t > p[4] if left else t >= p[4]
-        if not on:
-            return p[0]
-        return p[0] + p[1] * math.sin(2.0 * math.pi * p[2] * (t - p[4]) + p[3])
-    if kind == STEP:             # p = offset, height, start_time
-        on = t > p[2] if left else t >= p[2]
-        return p[0] + (p[1] if on else 0.0)
-    if kind == RAMP:             # p = offset, height, duration, start_time
-        t0 = p[3]
-        if t < t0 or (left and t == t0):
-            return p[0]
-        if t >= t0 + p[2]:
-            return p[0] + p[1]
-        return p[0] + p[1] * (t - t0) / p[2]
-    return p[0]                  # CONSTANT
 
 
 _RES_SIG = types.int32(types.float64, types.voidptr, types.voidptr, types.voidptr, types.voidptr)

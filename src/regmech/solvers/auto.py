@@ -257,7 +257,8 @@ def _runs_native(c) -> bool:
 def _forcing_frequency(model, c=None) -> float:
     """The highest frequency [Hz] of the model's sinusoidal inputs (0 without). With the compiled system ``c``,
     the model's signal objects are found once and kept with it (a change of a parameter drops it, like
-    ``_cached_modes``); their frequencies are read at every call (a signal changed in place counts). The
+    ``_cached_modes``); their frequencies are read at every call (the library's signals are fixed when made, a user's own
+    Signal subclass may not be). The
     pass over every component's values cost 0.2 ms on a chain of 100 inertias, at every default call."""
     from ..signals import Signal
     signals = c.__dict__.get("_model_signals") if c is not None else None

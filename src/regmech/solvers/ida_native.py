@@ -40,9 +40,6 @@ import numpy as np
 from ..errors import SimulationError
 from . import sundials_log
 
-#: signal classes the kernels evaluate (``_native_kernels._signal``)
-_SUPPORTED = ("Constant", "Sine", "Step", "Ramp")
-
 _LIB = None            # the loaded libraries and kernels, or the reason they are not available
 
 #: a compiled system of at most this many unknowns keeps its native solvers for its next runs
@@ -175,41 +172,11 @@ def libraries():
     return _LIB
 
 
-def _signal_entry(s):
-    """(kind, parameters) of a signal the kernels evaluate, or None."""
-    from . import _native_kernels as K
-    name = type(s).__name__
-    if name not in _SUPPORTED or type(s).__module__ != "regmech.signals":
-        return None
-    p = np.zeros(K.N_PAR)
-    if name == "Sine":
-        p[:5] = s.offset, s.amplitude, s.freq_hz, s.phase, s.start_time
-        return K.SINE, p
-    if name == "Step":
-        p[:3] = s.offset, s.height, s.start_time
-        return K.STEP, p
-    if name == "Ramp":
-        p[:4] = s.offset, s.height, s.duration, s.start_time
-        return K.RAMP, p
-    p[0] = s.value_
-    return K.CONSTANT, p
-
-
 def signal_table(plan):
-    """(kinds, slots, parameters) of every signal the residual reads, or a string naming one it cannot."""
-    kinds, slots, pars = [], [], []
-    for g, start, _, _ in plan.input_slots:
-        for j, sigs in enumerate(g.signals):
-            for i, s in enumerate(sigs):
-                entry = _signal_entry(s)
-                if entry is None:
-                    return (f"{type(g.devices[i]).__name__} '{g.devices[i].name}' has a {type(s).__name__} signal "
-                            f"(the native path evaluates {', '.join(_SUPPORTED)})")
-                kinds.append(entry[0])
-                slots.append(start + j * g.n + i)
-                pars.append(entry[1])
-    return (np.array(kinds, np.int64), np.array(slots, np.int64),
-            np.concatenate(pars) if pars else np.zeros(0))
+    """(kinds, slots, parameters) of every signal the residual reads, or a string naming one it cannot
+    (``compile._native_signals.signal_table``)."""
+    from ..compile._native_signals import signal_table as table
+    return table(plan)
 
 
 def friction_laws(fr):
@@ -224,6 +191,7 @@ def friction_laws(fr):
 
 def _friction_laws(fr):
     """``friction_laws`` computed."""
+    from ..compile._native_signals import SUPPORTED, signal_entry
     laws = []
     for j, dev in enumerate(fr.devices):
         what = f"{type(dev).__name__} '{dev.name}'"
@@ -238,10 +206,10 @@ def _friction_laws(fr):
         if law is None:
             return f"{what} has a speed-dependent or user-defined friction law"
         sig, fn_scale, k, peak = law
-        entry = _signal_entry(sig)
+        entry = signal_entry(sig)
         if entry is None:
             return (f"{what} has a {type(sig).__name__} normal force (the native path evaluates "
-                    f"{', '.join(_SUPPORTED)})")
+                    f"{', '.join(SUPPORTED)})")
         if not all(np.isfinite(x) for x in (fn_scale, k, peak)):
             return f"{what} has non-finite friction parameters"
         laws.append((entry[0], entry[1], float(fn_scale), float(k), float(peak)))
