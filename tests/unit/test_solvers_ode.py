@@ -283,6 +283,40 @@ def test_growth_watch_history_survives_a_rewind_and_its_scratch_vector():
     assert any(v is not None and v.kind == "rough" for v in verdicts)
 
 
+def test_compiled_growth_watch_gives_the_numpy_verdicts_and_numbers():
+    """The one-pass compiled check (``_divergence_kernel``, used with a compiled right-hand side) against the
+    numpy passes: the same N(u), r_k, verdicts and history, through rewinds, mode changes, a state at zero,
+    a rough sawtooth, a NaN and a blow-up."""
+    pytest.importorskip("numba")
+    from regmech.solvers.divergence import ROUGH_STEPS, GrowthWatch
+    rng = np.random.default_rng(11)
+    n = 300
+    smooth = [np.cumsum(rng.normal(size=n)) * (1 + 0.02 * k) for k in range(40)]
+    saw = [(-1.5) ** k * 1e-3 * np.ones(n) for k in range(3 * ROUGH_STEPS)]
+    nan = [s.copy() for s in smooth[:5]]
+    nan[4][7] = np.nan
+    big = [s.copy() for s in smooth[:5]]
+    big[3][0] = 1e120
+    for seq in (smooth, saw, nan, big, [np.zeros(n)] * 6 + smooth[:10]):
+        plain, compiled = GrowthWatch(0.0, seq[0]), GrowthWatch(0.0, seq[0], compiled=True)
+        assert compiled._kernel is not None and plain._kernel is None
+        times = [0.1 * k for k in range(1, len(seq))]
+        script = [(t, seq[k]) for k, t in enumerate(times, start=1)]
+        if len(script) > 20:        # an event: the steps after 1.5 s redone, then a mode change
+            script = script[:20] + [(0.1 * j, seq[j]) for j in range(16, len(seq))]
+        for step, (t, u) in enumerate(script):
+            if step == 30:
+                plain.mode_change()
+                compiled.mode_change()
+            a, b = plain.check(t, u), compiled.check(t, u)
+            assert a == b, (step, a, b)
+            assert [e[2:4] for e in plain._recent] == [e[2:4] for e in compiled._recent]
+            assert all(np.array_equal(x[1], y[1]) for x, y in zip(plain._recent, compiled._recent))
+            if a is not None:
+                break
+        assert (plain.largest_roughness, plain.largest_ratio) == (compiled.largest_roughness, compiled.largest_ratio)
+
+
 def test_round_off_at_rest_is_not_divergence_but_an_instability_from_it_is():
     """Fuzz seed 80337: a model held at rest moved by round-off (|u| from 0 to 2.5e-17, rough at every step) and
     DOP853 stopped it as diverged. States below ``QUIET`` get no verdict; a sawtooth growing 1.5x a step from the

@@ -148,8 +148,18 @@ class Divergence(NamedTuple):
 class GrowthWatch:
     """The divergence criterion of the module docstring along one run (all segments)."""
 
-    def __init__(self, t_start, u0, max_growth=MAX_GROWTH):
+    def __init__(self, t_start, u0, max_growth=MAX_GROWTH, compiled=False):
         self.max_growth = max_growth
+        # ``compiled``: the per-step arithmetic in one numba pass (``_divergence_kernel``; a run whose right-hand
+        # side is compiled, so numba is loaded), the same numbers as the numpy passes
+        self._kernel = None
+        if compiled:
+            try:
+                from ._divergence_kernel import step_check
+                self._kernel = step_check
+            except (ImportError, OSError, AttributeError):
+                pass
+        self._spares: list[np.ndarray] = []        # arrays of entries that left ``_recent`` (compiled path)
         n0 = state_norm(u0)
         self.t_onset = float(t_start) if n0 > 0 else None
         self.times = [float(t_start)]
@@ -193,12 +203,18 @@ class GrowthWatch:
 
     def check(self, t, u):
         """Record the state at the end of a step; returns None, or a ``Divergence``."""
-        if self._scratch is None or self._scratch.shape != np.shape(u):
-            self._scratch = np.empty(np.shape(u))
-        n = state_norm(u, self._scratch)
+        recent = self._recent
+        while recent and recent[-1][0] >= t:      # a restart at an event before the last step end
+            self._retire(recent.pop())
+        if self._kernel is not None:
+            n, entry = self._measure(t, u)
+        else:
+            if self._scratch is None or self._scratch.shape != np.shape(u):
+                self._scratch = np.empty(np.shape(u))
+            n, entry = state_norm(u, self._scratch), None
         if not n <= BLOW_UP:
             return Divergence("blow-up", n, self.reference(t))
-        rough = self._roughness(t, u, n)
+        rough = self._roughness(t, u, n, entry)
         if self.max_growth is not None and n > QUIET:
             ref = self.reference(t)
             if ref > 0:
@@ -215,6 +231,41 @@ class GrowthWatch:
             self.prefix_max.append(max(self.prefix_max[-1], n))
         return None
 
+    def _spare(self, size):
+        spares = self._spares
+        while spares:
+            a = spares.pop()
+            if a.shape == (size,):
+                return a
+        return np.empty(size)
+
+    def _retire(self, entry):
+        """Keep the arrays of an entry that left ``_recent`` for the next ones (compiled path only)."""
+        if self._kernel is not None and len(self._spares) < 4:
+            self._spares.extend(a for a in (entry[1], entry[4]) if a is not None)
+
+    def _measure(self, t, u):
+        """``(N(u), the entry of u for _recent)`` in one compiled pass (``_divergence_kernel.step_check``)."""
+        u = np.ascontiguousarray(u, dtype=np.float64)
+        recent = self._recent
+        size = u.shape[0]
+        u_copy, du = self._spare(size), self._spare(size)
+        if recent:
+            t1, u1 = recent[-1][0], recent[-1][1]
+            curvature = len(recent) >= 2
+            if curvature:       # d = (u - u1) - (t - t1) / (t1 - t0) * (u1 - u0), as in ``_roughness``
+                du1, factor = recent[-1][4], (t - t1) / (t1 - recent[-2][0])
+            else:
+                du1, factor = u1, 0.0
+            if self._scratch is None or self._scratch.shape != u.shape:
+                self._scratch = np.empty(u.shape)
+            n, dmax = self._kernel(u, u1, du1, factor, curvature, u_copy, du, self._scratch)
+            r = dmax / n if curvature and n > 0 else 0.0
+            return n, (float(t), u_copy, n, r, du)
+        n, _ = self._kernel(u, u, u, 0.0, False, u_copy, du, du)
+        self._spares.append(du)
+        return n, (float(t), u_copy, n, 0.0, None)
+
     def mode_change(self):
         """A friction mode change: the law of motion switched, so the curvature ``d_k`` of steps
         spanning it measures the jump of the acceleration, not an instability. The roughness history
@@ -224,25 +275,26 @@ class GrowthWatch:
         ``r_k > 0.5`` while it grew from rest: a correct run was stopped as diverged."""
         self._recent.clear()
 
-    def _roughness(self, t, u, n):
-        """Update r_k; a ``Divergence`` when the last ROUGH_STEPS steps were all rough and N grew."""
+    def _roughness(self, t, u, n, entry=None):
+        """Update r_k; a ``Divergence`` when the last ROUGH_STEPS steps were all rough and N grew. ``entry``: the
+        step's ``(t, u, N, r, u - u1)`` when the compiled pass has made it (``_measure``)."""
         recent = self._recent
-        while recent and recent[-1][0] >= t:      # a restart at an event before the last step end
-            recent.pop()
-        r = 0.0
-        du = None
-        if recent:
-            t1, u1 = recent[-1][0], recent[-1][1]
-            du = u - u1
-            if len(recent) >= 2 and n > 0:
-                # d = (u - u1) - (t - t1) / (t1 - t0) * (u1 - u0), with u1 - u0 kept from the step before
-                t0 = recent[-2][0]
-                d = np.multiply(recent[-1][4], (t - t1) / (t1 - t0), out=self._scratch)
-                np.subtract(du, d, out=d)
-                r = state_norm(d, self._scratch) / n
-        recent.append((float(t), u.copy(), n, r, du))
+        if entry is None:
+            r = 0.0
+            du = None
+            if recent:
+                t1, u1 = recent[-1][0], recent[-1][1]
+                du = u - u1
+                if len(recent) >= 2 and n > 0:
+                    # d = (u - u1) - (t - t1) / (t1 - t0) * (u1 - u0), with u1 - u0 kept from the step before
+                    t0 = recent[-2][0]
+                    d = np.multiply(recent[-1][4], (t - t1) / (t1 - t0), out=self._scratch)
+                    np.subtract(du, d, out=d)
+                    r = state_norm(d, self._scratch) / n
+            entry = (float(t), u.copy(), n, r, du)
+        recent.append(entry)
         if len(recent) > ROUGH_STEPS + 1:
-            recent.pop(0)
+            self._retire(recent.pop(0))
         if len(recent) <= ROUGH_STEPS:
             return None
         sustained = min(entry[3] for entry in recent[1:])

@@ -1260,7 +1260,8 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     guards = guards_for(c)
     watch = EventWatch(c, guards, shortest_period(model)) if guards is not None else None
     guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
-    growth = GrowthWatch(t_start, u, max_growth)
+    # a compiled right-hand side (numba loaded) gets the divergence test's per-step pass compiled too
+    growth = GrowthWatch(t_start, u, max_growth, compiled=out.linear and out.form._native is not None)
 
     def settle(t, state, modes, crossed):
         """The mode logic at an event or a breakpoint: its changes recorded (events, chatter guard, growth
