@@ -307,6 +307,17 @@ def test_solvers_without_impacts_refuse_by_name(solver):
         _inertia_model(0.8).simulate(t_end=1.0, dt_out=1e-2, solver=solver)
 
 
+def test_a_hard_stop_added_after_a_run_is_refused_too():
+    # the devices with impacts are found once per compiled system (a model change compiles it again)
+    m = rm.Model("late_stop")
+    body = m.add(Inertia("J", J=1.0, w0=1.0))
+    m.simulate(t_end=0.1, dt_out=1e-2, solver="rk4", h=1e-2, tol=None)
+    stop = m.add(HardStop("stop", lower=-1.0, upper=0.5, e=0.5))
+    m.connect(body.flange_b, stop.flange)
+    with pytest.raises(SimulationError, match="solver 'rk4'.*HardStop 'stop'.*rigid impacts"):
+        m.simulate(t_end=0.1, dt_out=1e-2, solver="rk4", h=1e-2, tol=None)
+
+
 def test_auto_never_picks_a_solver_that_refuses():
     res = _inertia_model(0.8).simulate(t_end=1.0, dt_out=1e-2)
     assert res.stats.solver in ("ida", "scipy:Radau", "scipy:DOP853")
