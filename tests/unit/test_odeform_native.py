@@ -156,3 +156,11 @@ def test_dop853_run_is_the_same_with_and_without_the_compiled_form(monkeypatch):
     for s in sig:
         assert np.array_equal(res[s], res2[s]), s
     assert res.stats.rhs_calls == res2.stats.rhs_calls and res.stats.steps == res2.stats.steps
+
+
+def test_kernel_files_state_the_signal_formulas_they_were_written_against():
+    # numba's cache of a kernel file is renewed only when that file changes: a new signal formula in
+    # _native_signals must come with an edit of both kernel files, or their cached kernels keep the old one
+    from regmech.compile._native_signals import source_hash
+    from regmech.solvers import _native_kernels
+    assert K.SIGNALS_SOURCE == source_hash() == _native_kernels.SIGNALS_SOURCE

@@ -5,10 +5,18 @@ linear ODE form (``compile._odeform_kernels``). ``signal_value`` repeats the for
 ``regmech.signals`` in the same order of operations (``math.sin`` is the C library's ``sin`` on both
 sides), so a signal gives the same number compiled or not. Signals of other classes (tables, user
 functions, subclasses) keep their Python path.
+
+numba's on-disk cache of a kernel is invalidated by a change of the kernel's own file only, not of this one,
+whose ``signal_value`` is compiled into the kernels of ``compile._odeform_kernels`` and
+``solvers._native_kernels``. Each of those files therefore states ``SIGNALS_SOURCE``, the ``source_hash`` of
+``signal_value`` it was written against, and a test compares them: editing ``signal_value`` fails that test
+until both files are edited too, which renews their caches.
 """
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import math
 
 import numpy as np
@@ -80,3 +88,8 @@ def signal_table(plan):
                 pars.append(entry[1])
     return (np.array(kinds, np.int64), np.array(slots, np.int64),
             np.concatenate(pars) if pars else np.zeros(0))
+
+
+def source_hash() -> str:
+    """The first 16 hex digits of the SHA-256 of ``signal_value``'s source (module docstring)."""
+    return hashlib.sha256(inspect.getsource(signal_value.py_func).encode()).hexdigest()[:16]

@@ -34,6 +34,9 @@ from numba.extending import intrinsic
 # signal kinds and their formulas, shared with the ODE form's compiled right-hand side
 from ..compile._native_signals import CONSTANT, N_PAR, RAMP, SINE, STEP      # noqa: E402,F401
 from ..compile._native_signals import signal_value as _signal                 # noqa: E402
+#: ``_native_signals.source_hash()`` of the signal formulas compiled in here (a test checks it: a change there must
+#: edit this file, or numba's cache of this file's kernels keeps the old formulas)
+SIGNALS_SOURCE = "0d20609da5c999f8"
 # a friction device's first event function in the segment's modes (``hybrid.events``)
 EV_SLIDING, EV_STUCK, EV_CONSTANT = 0, 1, 2
 # the mode codes of ``regmech.modes`` (STUCK 0, FORWARD 1, BACKWARD -1; FREE and HELD carry no torque)
