@@ -94,6 +94,12 @@ class Signal:
                 f"drive.tau = {type(self).__name__}(...); that recompiles the model.")
         object.__setattr__(self, name, value)
 
+    def __delattr__(self, name):
+        if self.__dict__.get("_frozen", False):
+            raise ParameterError(f"{type(self).__name__}: parameter '{name}' cannot be removed (the signal's "
+                                 f"parameters are fixed when it is made)")
+        object.__delattr__(self, name)
+
     def _freeze(self):
         """Fix the parameters of a library signal (the end of its constructor; a user's subclass, whose own
         attributes the library never keeps, stays free to set them)."""

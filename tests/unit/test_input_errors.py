@@ -259,6 +259,8 @@ def test_a_library_signal_cannot_be_changed_in_place(sig, name):
     with pytest.raises(rm.ParameterError, match=rf"{type(sig).__name__}: parameter '{name}' cannot be changed in "
                                                 rf"place.*assign it to the component's parameter"):
         setattr(sig, name, 1.0)
+    with pytest.raises(rm.ParameterError, match="cannot be removed"):
+        del sig._frozen                                 # the freeze itself cannot be undone either
     assert repr(sig) == before
 
 

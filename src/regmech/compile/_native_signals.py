@@ -73,8 +73,8 @@ def signal_entry(s):
 def signal_table(plan):
     """(kinds, slots, parameters) of every signal in the input slots of ``plan``
     (``EvaluationPlan.input_slots``: the value of signal i of bank j of a group at ``start + j n + i``), or
-    a string naming the first one the kernels cannot evaluate. Read at every call: a signal changed in
-    place after a run is honoured by the next run."""
+    a string naming the first one the kernels cannot evaluate. Callers keep it with the compiled system: the
+    library's signals are fixed when made (``regmech.signals.Signal``), and a new one recompiles the model."""
     kinds, slots, pars = [], [], []
     for g, start, _, _ in plan.input_slots:
         for j, sigs in enumerate(g.signals):
