@@ -257,7 +257,10 @@ class OdeForm:
                 cols = np.concatenate([c.ix, c.iv, c.iz]).astype(np.int64)     # u = [x, v, z] in y
                 Tu = sp.csr_matrix(self.plan.T)[:, cols]
             if n_c:
-                mid = sp.csr_matrix(-(sp.diags(1.0 / c.mass) @ c.ScT) @ Tu[:n_c])
+                # diag(1/m) as CSR directly: the product scipy makes of sp.diags(1 / m) @ S_c^T (which converts
+                # the DIA diagonal to this CSR first), entries and order alike, without the conversion
+                inv_m = sp.csr_matrix((1.0 / c.mass, np.arange(n), np.arange(n + 1)), shape=(n, n))
+                mid = sp.csr_matrix(-(inv_m @ c.ScT) @ Tu[:n_c])
             else:
                 mid = sp.csr_matrix((n, self.size))
             bottom = sp.csr_matrix(Tu[n_c:])
