@@ -99,7 +99,7 @@ def test_compiled_linear_form_gives_the_python_form_to_the_last_bit(build, monke
 
 
 def test_the_kernel_evaluates_the_library_signals_and_python_the_others():
-    on = lambda m: odeform.ode_form(m.compile())._native[4]
+    on = lambda m: odeform.ode_form(m.compile())._native[3]
     assert on(benchmark_chain(300)) and on(tree(6, 12)) and on(sines(6))
     assert not on(benchmark_chain(80, tau=lambda t: 3.0 * math.cos(7.0 * t))) and not on(sines(7))
 
@@ -117,7 +117,7 @@ def test_general_input_matrix_gives_the_python_form_to_the_last_bit(monkeypatch)
     for form in (native, python):
         form.v_rows = None
     native._native = native._native_arguments()
-    assert native._native[1][8 + 2 * K.I_PARTS.index("v_rows") + 1] == 0      # no compact V: the general one
+    assert native._native[1][K.I_PLACES + 2 * K.I_PARTS.index("v_rows") + 1] == 0      # no compact V: general
     rng = np.random.default_rng(2)
     c._t_right = 0.5
     for t in (0.05, 0.42, 1.3):

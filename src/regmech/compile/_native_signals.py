@@ -73,8 +73,16 @@ def signal_entry(s):
 def signal_table(plan):
     """(kinds, slots, parameters) of every signal in the input slots of ``plan``
     (``EvaluationPlan.input_slots``: the value of signal i of bank j of a group at ``start + j n + i``), or
-    a string naming the first one the kernels cannot evaluate. Callers keep it with the compiled system: the
+    a string naming the first one the kernels cannot evaluate. Kept with the plan (read-only arrays): the
     library's signals are fixed when made (``regmech.signals.Signal``), and a new one recompiles the model."""
+    kept = plan.__dict__.get("_native_signal_table")
+    if kept is None:
+        kept = plan._native_signal_table = _signal_table(plan)
+    return kept
+
+
+def _signal_table(plan):
+    """``signal_table`` computed."""
     kinds, slots, pars = [], [], []
     for g, start, _, _ in plan.input_slots:
         for j, sigs in enumerate(g.signals):
@@ -86,8 +94,10 @@ def signal_table(plan):
                 kinds.append(entry[0])
                 slots.append(start + j * g.n + i)
                 pars.append(entry[1])
-    return (np.array(kinds, np.int64), np.array(slots, np.int64),
-            np.concatenate(pars) if pars else np.zeros(0))
+    table = (np.array(kinds, np.int64), np.array(slots, np.int64), np.concatenate(pars) if pars else np.zeros(0))
+    for a in table:
+        a.flags.writeable = False       # shared by the native IDA layouts and the ODE form
+    return table
 
 
 def source_hash() -> str:

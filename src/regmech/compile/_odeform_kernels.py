@@ -84,11 +84,14 @@ def _product(kind, ints, floats, rows, cols, x, y):
             y[i] = acc
 
 
-#: header of the integer data (``layout``): sizes, flags, and (offset, length) of each array
+#: the header of ``ih`` (``layout``): sizes and flags, then (offset, length) of each integer part in ``ih`` and of
+#: each float part in ``fh``
 H_N, H_NC, H_ROWS, H_TK, H_SK, H_VK, H_T0, H_SIG = range(8)
 I_PARTS = ("ti", "si", "vi", "v_rows", "v_cols", "sig_kind", "sig_slot")
 F_PARTS = ("tf", "sf", "vf", "t0", "v_vals", "sig_par", "neg_mass", "out", "work", "acc")
-I_HEAD = 8 + 2 * len(I_PARTS)
+I_PLACES = 8                                   # (offset, length) of integer part k at I_PLACES + 2 k
+F_PLACES = I_PLACES + 2 * len(I_PARTS)         # ... of float part k at F_PLACES + 2 k
+I_HEAD = F_PLACES + 2 * len(F_PARTS)
 
 
 def layout(n, n_c, rows, T, S, V, t0, add_t0, compact, signals, neg_mass):
@@ -96,39 +99,37 @@ def layout(n, n_c, rows, T, S, V, t0, add_t0, compact, signals, neg_mass):
     0.1 us per argument; 27 arguments cost more than the products on a chain of 1,000 inertias). ``T``, ``S``,
     ``V``: ``pack``'s ``(kind, ints, floats)``; ``compact``: ``(v_rows, v_cols, v_vals)`` or None; ``signals``:
     the table ``(kinds, slots, parameters)`` or None (Python writes the signals into ``buf``)."""
-    v_rows, v_cols, v_vals = compact if compact is not None else (np.zeros(0, np.int64),) * 2 + (np.zeros(0),)
-    kinds, slots, pars = signals if signals is not None else (np.zeros(0, np.int64),) * 2 + (np.zeros(0),)
+    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    v_rows, v_cols, v_vals = compact if compact is not None else empty
+    kinds, slots, pars = signals if signals is not None else empty
     ints = dict(ti=T[1], si=S[1], vi=V[1], v_rows=v_rows, v_cols=v_cols, sig_kind=kinds, sig_slot=slots)
     floats = dict(tf=T[2], sf=S[2], vf=V[2], t0=t0, v_vals=v_vals, sig_par=pars, neg_mass=neg_mass,
                   out=np.zeros(rows), work=np.zeros(rows), acc=np.zeros(n))
     head = [n, n_c, rows, T[0], S[0], V[0], int(bool(add_t0)), int(signals is not None)]
-    pos = I_HEAD
-    for name in I_PARTS:
-        head += [pos, len(ints[name])]
-        pos += len(ints[name])
+    for parts, pos in ((ints, I_HEAD), (floats, 0)):
+        for name in (I_PARTS if parts is ints else F_PARTS):
+            head += [pos, len(parts[name])]
+            pos += len(parts[name])
     ih = np.concatenate([np.array(head, np.int64)] + [np.asarray(ints[k], np.int64) for k in I_PARTS])
     fh = np.concatenate([np.asarray(floats[k], np.float64) for k in F_PARTS])
-    offsets, pos = [], 0
-    for name in F_PARTS:
-        offsets.append((pos, len(floats[name])))
-        pos += len(floats[name])
-    return ih, fh, np.array(offsets, np.int64).ravel()
+    return ih, fh
 
 
 @njit(cache=True, inline="always")
 def _ipart(ih, k):
-    off = ih[8 + 2 * k]
-    return ih[off: off + ih[9 + 2 * k]]
+    off = ih[I_PLACES + 2 * k]
+    return ih[off: off + ih[I_PLACES + 2 * k + 1]]
 
 
 @njit(cache=True, inline="always")
-def _fpart(fh, fo, k):
-    return fh[fo[2 * k]: fo[2 * k] + fo[2 * k + 1]]
+def _fpart(ih, fh, k):
+    off = ih[F_PLACES + 2 * k]
+    return fh[off: off + ih[F_PLACES + 2 * k + 1]]
 
 
 @njit(cache=True, error_model="numpy")
-def linear_rhs(u, buf, t, left, ih, fh, fo):
-    """``g(t, u)`` of the linear form (module docstring) as a new array; ``(ih, fh, fo)`` from ``layout``.
+def linear_rhs(u, buf, t, left, ih, fh):
+    """``g(t, u)`` of the linear form (module docstring) as a new array; ``(ih, fh)`` from ``layout``.
     With a signal table, its signals are evaluated at ``t`` (left limits when ``left``) into ``buf`` first;
     the other slots of ``buf`` hold what Python wrote there. ``out`` (the rows of [tau; dz]), ``work`` (for a
     general V) and ``acc`` (length n) are scratch. A compact V (one term per row: ``out[v_rows] += v_vals *
@@ -136,11 +137,11 @@ def linear_rhs(u, buf, t, left, ih, fh, fo):
     n, n_c, rows = ih[H_N], ih[H_NC], ih[H_ROWS]
     ti, si, vi = _ipart(ih, 0), _ipart(ih, 1), _ipart(ih, 2)
     v_rows, v_cols = _ipart(ih, 3), _ipart(ih, 4)
-    tf, sf, vf, t0 = _fpart(fh, fo, 0), _fpart(fh, fo, 1), _fpart(fh, fo, 2), _fpart(fh, fo, 3)
-    v_vals, neg_mass = _fpart(fh, fo, 4), _fpart(fh, fo, 6)
-    out, work, acc = _fpart(fh, fo, 7), _fpart(fh, fo, 8), _fpart(fh, fo, 9)
+    tf, sf, vf, t0 = _fpart(ih, fh, 0), _fpart(ih, fh, 1), _fpart(ih, fh, 2), _fpart(ih, fh, 3)
+    v_vals, neg_mass = _fpart(ih, fh, 4), _fpart(ih, fh, 6)
+    out, work, acc = _fpart(ih, fh, 7), _fpart(ih, fh, 8), _fpart(ih, fh, 9)
     if ih[H_SIG]:
-        sig_kind, sig_slot, sig_par = _ipart(ih, 5), _ipart(ih, 6), _fpart(fh, fo, 5)
+        sig_kind, sig_slot, sig_par = _ipart(ih, 5), _ipart(ih, 6), _fpart(ih, fh, 5)
         for s in range(sig_kind.shape[0]):
             buf[sig_slot[s]] = signal_value(sig_kind[s], sig_par[N_PAR * s: N_PAR * (s + 1)], t, left)
     size = u.shape[0]

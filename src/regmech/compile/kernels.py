@@ -268,6 +268,13 @@ class SignalBank:
                                  for a in ("offset", "height", "start_time")))
             self._loop = [(i, s) for i, s in self._loop if type(s) is not Step]
 
+    @property
+    def vectorised(self) -> bool:
+        """Whether some of the signals are evaluated by one numpy expression (whose ``sin`` need not round as
+        the C library's ``math.sin`` does: compiled code that must repeat these values leaves such a bank to
+        ``at``)."""
+        return self._sine is not None or self._step is not None
+
     def at(self, t: float, left: bool = False) -> np.ndarray:
         """Values at t (left limits when ``left``); the array is reused: copy to keep it."""
         vals = self.values

@@ -169,7 +169,7 @@ class OdeForm:
             self._native = self._native_arguments() if NATIVE and self.on_u else None
 
     def _native_arguments(self):
-        """``(kernel, ih, fh, fo, signals)`` of ``_odeform_kernels.linear_rhs`` (``layout``); ``signals``: the
+        """``(kernel, ih, fh, signals)`` of ``_odeform_kernels.linear_rhs`` (``layout``); ``signals``: the
         kernel evaluates the signals (else Python writes them into ``buf``: a signal of another class, an offset
         not linear in its signals, or a bank of many sines or steps, which one numpy expression evaluates and
         whose sin need not round as the C library's does). None when a matrix is dense (BLAS adds its products
@@ -187,25 +187,24 @@ class OdeForm:
             compact = (np.asarray(self.v_rows, np.int64), np.asarray(self.v_cols, np.int64),
                        np.asarray(self.v_vals, np.float64))
         table = signal_table(self.plan)
-        vectorised = any(b._sine is not None or b._step is not None
-                         for g, *_ in self.plan.input_slots for b in g.banks)
+        vectorised = any(b.vectorised for g, *_ in self.plan.input_slots for b in g.banks)
         signals = None if isinstance(table, str) or self.slots or vectorised else table
-        ih, fh, fo = K.layout(self.n, self.n_c, packed[0][3], packed[0][:3], packed[1][:3], packed[2][:3],
+        ih, fh = K.layout(self.n, self.n_c, packed[0][3], packed[0][:3], packed[1][:3], packed[2][:3],
                               np.asarray(self.t0, np.float64), not self.t0_zero, compact, signals,
                               np.ascontiguousarray(self.neg_mass, np.float64))
-        return K.linear_rhs, ih, fh, fo, signals is not None
+        return K.linear_rhs, ih, fh, signals is not None
 
     def rhs(self, t, u, left=None):
         """``[v; -M^-1 S^T tau; dz]`` (linear form only; see the module docstring). ``left``: the side of the
         time-varying offsets at a breakpoint (default: the current segment's, ``t >= c._t_right``)."""
         c, n, n_c = self.c, self.n, self.n_c
         if self._native is not None:
-            kernel, ih, fh, fo, signals = self._native
+            kernel, ih, fh, signals = self._native
             if left is None:
                 left = t >= c._t_right
             if not signals and self.V is not None:
                 self._signals_into_buf(t, left)
-            return kernel(np.ascontiguousarray(u, dtype=np.float64), self.buf, float(t), bool(left), ih, fh, fo)
+            return kernel(np.ascontiguousarray(u, dtype=np.float64), self.buf, float(t), bool(left), ih, fh)
         if self.on_u:
             out = self.T_mv(u)
         else:

@@ -159,7 +159,6 @@ class GrowthWatch:
                 self._kernel = step_check
             except (ImportError, OSError, AttributeError):
                 pass
-        self._spares: list[np.ndarray] = []        # arrays of entries that left ``_recent`` (compiled path)
         n0 = state_norm(u0)
         self.t_onset = float(t_start) if n0 > 0 else None
         self.times = [float(t_start)]
@@ -205,7 +204,7 @@ class GrowthWatch:
         """Record the state at the end of a step; returns None, or a ``Divergence``."""
         recent = self._recent
         while recent and recent[-1][0] >= t:      # a restart at an event before the last step end
-            self._retire(recent.pop())
+            recent.pop()
         if self._kernel is not None:
             n, entry = self._measure(t, u)
         else:
@@ -231,40 +230,25 @@ class GrowthWatch:
             self.prefix_max.append(max(self.prefix_max[-1], n))
         return None
 
-    def _spare(self, size):
-        spares = self._spares
-        while spares:
-            a = spares.pop()
-            if a.shape == (size,):
-                return a
-        return np.empty(size)
-
-    def _retire(self, entry):
-        """Keep the arrays of an entry that left ``_recent`` for the next ones (compiled path only)."""
-        if self._kernel is not None and len(self._spares) < 4:
-            self._spares.extend(a for a in (entry[1], entry[4]) if a is not None)
-
     def _measure(self, t, u):
         """``(N(u), the entry of u for _recent)`` in one compiled pass (``_divergence_kernel.step_check``)."""
         u = np.ascontiguousarray(u, dtype=np.float64)
         recent = self._recent
         size = u.shape[0]
-        u_copy, du = self._spare(size), self._spare(size)
-        if recent:
-            t1, u1 = recent[-1][0], recent[-1][1]
-            curvature = len(recent) >= 2
-            if curvature:       # d = (u - u1) - (t - t1) / (t1 - t0) * (u1 - u0), as in ``_roughness``
-                du1, factor = recent[-1][4], (t - t1) / (t1 - recent[-2][0])
-            else:
-                du1, factor = u1, 0.0
-            if self._scratch is None or self._scratch.shape != u.shape:
-                self._scratch = np.empty(u.shape)
-            n, dmax = self._kernel(u, u1, du1, factor, curvature, u_copy, du, self._scratch)
-            r = dmax / n if curvature and n > 0 else 0.0
-            return n, (float(t), u_copy, n, r, du)
-        n, _ = self._kernel(u, u, u, 0.0, False, u_copy, du, du)
-        self._spares.append(du)
-        return n, (float(t), u_copy, n, 0.0, None)
+        # fresh arrays: a pool of retired ones saved nothing (6.7 against 6.9 us on 2,000 states)
+        u_copy, du = np.empty(size), np.empty(size)
+        u1 = recent[-1][1] if recent else u
+        curvature = len(recent) >= 2
+        if curvature:       # d = (u - u1) - (t - t1) / (t1 - t0) * (u1 - u0), as in ``_roughness``
+            t1 = recent[-1][0]
+            du1, factor = recent[-1][4], (t - t1) / (t1 - recent[-2][0])
+        else:
+            du1, factor = u1, 0.0
+        if self._scratch is None or self._scratch.shape != u.shape:
+            self._scratch = np.empty(u.shape)
+        n, dmax = self._kernel(u, u1, du1, factor, curvature, u_copy, du, self._scratch)
+        r = dmax / n if curvature and n > 0 else 0.0
+        return n, (float(t), u_copy, n, r, du if recent else None)
 
     def mode_change(self):
         """A friction mode change: the law of motion switched, so the curvature ``d_k`` of steps
@@ -294,7 +278,7 @@ class GrowthWatch:
             entry = (float(t), u.copy(), n, r, du)
         recent.append(entry)
         if len(recent) > ROUGH_STEPS + 1:
-            self._retire(recent.pop(0))
+            recent.pop(0)
         if len(recent) <= ROUGH_STEPS:
             return None
         sustained = min(entry[3] for entry in recent[1:])

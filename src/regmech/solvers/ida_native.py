@@ -172,13 +172,6 @@ def libraries():
     return _LIB
 
 
-def signal_table(plan):
-    """(kinds, slots, parameters) of every signal the residual reads, or a string naming one it cannot
-    (``compile._native_signals.signal_table``)."""
-    from ..compile._native_signals import signal_table as table
-    return table(plan)
-
-
 def friction_laws(fr):
     """Per friction device ``(kind, parameters, fn_scale, k, peak)`` of its closed-form law
     (``FrictionDevice.linear_law``), or a string naming the first device the kernels cannot evaluate. Kept
@@ -246,6 +239,7 @@ def _eligible(c, linsolver):
     lib = libraries()            # numba first: the signal table needs the kernels' constants
     if isinstance(lib, str):
         return lib
+    from ..compile._native_signals import signal_table
     table = signal_table(plan)
     if isinstance(table, str):
         return table
@@ -319,6 +313,7 @@ def _layout(c, linsolver, order, lband=0, uband=0):
     import scipy.sparse as sp
     plan = c._plan
     N = c.N
+    from ..compile._native_signals import signal_table
     kinds, slots, pars = signal_table(plan)
     L = sp.csr_matrix(plan.L) if isinstance(plan.L, np.ndarray) else plan.L.tocsr(copy=True)
     L.sum_duplicates()
