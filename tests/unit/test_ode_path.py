@@ -217,7 +217,7 @@ def test_spectral_radius_of_the_linear_form_is_kept_with_the_compiled_model(monk
     problem, u = start(c)
     calls = []
     bound = od.spectral_bound
-    monkeypatch.setattr(od, "spectral_bound", lambda J, c: calls.append(1) or bound(J, c))
+    monkeypatch.setattr(od, "spectral_bound", lambda J, c, **kw: calls.append(1) or bound(J, c, **kw))
     rho = od.spectral_radius(problem, 0.0, u, above=1e9)
     assert od.spectral_radius(problem, 0.0, u, above=1e9) == rho and len(calls) == 1
     m["sd3"].c = 4e4                                       # a stiffer link: a new compiled model, a new radius
