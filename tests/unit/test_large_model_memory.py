@@ -149,6 +149,32 @@ def test_recorder_keeps_the_asked_columns_and_never_holds_rows_twice():
     assert np.shares_memory(Y, rec.Y) and np.shares_memory(YP, rec.YP)
 
 
+def test_recorder_allocates_no_rates_until_a_row_writes_them():
+    # rows whose y' is filled later (the linear ODE form's deferred accelerations) leave y' unallocated; a
+    # row that writes y' allocates it with the rows before zero (to be filled), growth keeps both
+    rec = Recorder(0, capacity=4)
+    for k in range(3):
+        rec.row_buffer(3)[:] = k
+        rec.commit(0.1 * k, np.zeros(0, int))
+    assert rec.YP is None
+    T, Y, YP, L, MO = rec.arrays()
+    assert YP is None and Y.shape == (3, 3)
+    y, yp = rec.row_buffers(3)
+    y[:], yp[:] = 7.0, 8.0
+    rec.commit(0.3, np.zeros(0, int))
+    for k in range(4, 30):                               # beyond the capacity: grown
+        rec.row_buffer(3)[:] = k
+        rec.commit(0.1 * k, np.zeros(0, int))
+    T, Y, YP, L, MO = rec.arrays()
+    assert Y.shape == YP.shape == (30, 3)
+    np.testing.assert_array_equal(YP[:, 0], np.r_[np.zeros(3), 8.0, np.zeros(26)])
+    np.testing.assert_array_equal(Y[:, 0], np.r_[np.arange(3.0), 7.0, np.arange(4.0, 30.0)])
+    rec.row_buffer(3)[1] = np.nan                        # a non-finite state is refused without rates too
+    rec.commit(3.0, np.zeros(0, int))
+    with pytest.raises(rm.SimulationError, match="non-finite"):
+        rec.arrays()
+
+
 def test_parameter_declarations_are_cached_per_class():
     Inertia("first", J=1.0)                      # caches Inertia's declarations
 

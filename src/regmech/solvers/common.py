@@ -164,32 +164,40 @@ class Recorder:
         self.L = np.zeros(self.capacity, bool)
         self.MO = np.zeros((self.capacity, modes_width), int)
         self.Y = self.YP = None
+        self.yp_width = 0
 
     @property
     def t(self):
         return self.T[:self.k]
 
-    def _reserve(self, width, rows=1):
-        """Room for ``rows`` more rows of ``width`` unknowns."""
+    def _reserve(self, width, rows=1, rates=True):
+        """Room for ``rows`` more rows of ``width`` unknowns; ``rates``: of y' too (else y' may stay unallocated
+        until a row writes it: ``row_buffer``)."""
         if self.Y is None:
             self.capacity = max(self.capacity, self.k + rows)
             self.T = np.resize(self.T, self.capacity)
             self.L = np.resize(self.L, self.capacity)
             self.MO = np.resize(self.MO, (self.capacity, self.mw))
             # zeros (calloc: fresh pages of a large array are zero without being written), so that a row handed
-            # out by ``row_buffers`` is zero already and a row of y' filled only when read (the ODE driver's
-            # ``deferred_rates``) costs no page until then: on a 10,000-inertia chain, zeroing each output row of
-            # y and y' cost 14 % of a DOP853 run (the pages' first touch)
+            # out by ``row_buffers`` is zero already: on a 10,000-inertia chain, zeroing each output row of y and
+            # y' cost 14 % of a DOP853 run (the pages' first touch)
             self.Y = np.zeros((self.capacity, width))
-            self.YP = np.zeros((self.capacity, width if self.yp_cols is None else len(self.yp_cols)))
+            self.yp_width = width if self.yp_cols is None else len(self.yp_cols)
         if self.k + rows > self.capacity:
             grown = max(self.k + rows, self.capacity + max(self.capacity // 2, 16))
             self.T = np.resize(self.T, grown)
             self.L = np.resize(self.L, grown)
             self.MO = np.resize(self.MO, (grown, self.mw))
-            Y, YP = np.zeros((grown, self.Y.shape[1])), np.zeros((grown, self.YP.shape[1]))
-            Y[:self.k], YP[:self.k] = self.Y[:self.k], self.YP[:self.k]
-            self.Y, self.YP, self.capacity = Y, YP, grown
+            Y = np.zeros((grown, self.Y.shape[1]))
+            Y[:self.k] = self.Y[:self.k]
+            if self.YP is not None:
+                YP = np.zeros((grown, self.YP.shape[1]))
+                YP[:self.k] = self.YP[:self.k]
+                self.YP = YP
+            self.Y, self.capacity = Y, grown
+        if rates and self.YP is None:
+            # the rows before (if any) wait for their y' (``row_buffer``): zero until filled
+            self.YP = np.zeros((self.capacity, self.yp_width))
 
     def add(self, t, y, yp, modes, left=False):
         self._reserve(len(y))
@@ -218,6 +226,14 @@ class Recorder:
         self._reserve(width)
         return self.Y[self.k], self.YP[self.k]
 
+    def row_buffer(self, width):
+        """``y`` of the next row (zero), to fill in place before ``commit``; its ``y'`` is left to whoever fills
+        the rates later (the ODE driver's ``deferred_rates``): while no row writes ``y'``, its array is not even
+        allocated. On a 10,000-inertia chain, allocating it zero (16 MB that the allocator clears when it
+        recycles memory) and checking it finite cost 3-4 % of a RK45 run whose accelerations nobody read."""
+        self._reserve(width, rates=False)
+        return self.Y[self.k]
+
     def commit(self, t, modes, left=False):
         k = self.k
         self.T[k] = float(t)
@@ -227,10 +243,16 @@ class Recorder:
         self.k = k + 1
 
     def arrays(self):
+        """``(T, Y, YP, L, MO)`` of the rows so far; ``YP`` is None when no row has written ``y'`` (every row's
+        rates are left to ``row_buffer``'s caller, which checks them when it fills them)."""
         k = self.k
-        Y, YP = (self.Y[:k], self.YP[:k]) if self.Y is not None else (np.zeros((k, 0)), np.zeros((k, 0)))
-        if not (np.all(np.isfinite(Y)) and np.all(np.isfinite(YP))):
-            bad = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | ~np.all(np.isfinite(YP), axis=1))[0][0])
+        if self.Y is None:
+            Y, YP = np.zeros((k, 0)), np.zeros((k, 0))
+        else:
+            Y, YP = self.Y[:k], (self.YP[:k] if self.YP is not None else None)
+        if not (np.all(np.isfinite(Y)) and (YP is None or np.all(np.isfinite(YP)))):
+            bad = np.zeros(k, bool) if YP is None else ~np.all(np.isfinite(YP), axis=1)
+            bad = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | bad)[0][0])
             raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.T[bad]:.6g}; the model or "
                                   f"the solver settings are unstable there (try a tighter tolerance or a stable "
                                   f"solver)")

@@ -499,31 +499,35 @@ class _Sink:
         if self.rec is not None:
             if row is None and self.linear:     # filled in place: no row arrays to allocate and copy
                 c = self.c
-                y, yp = self.rec.row_buffers(c.N)
                 if g is None:
                     # y' = g(t, u) waits until an output reads it (``deferred_rates``): most reads are positions
                     # and speeds, and g per output row cost 8 % of a DOP853 run on a chain of 1000 inertias
+                    y = self.rec.row_buffer(c.N)
                     n = c.n
                     y[c._sx], y[c._sv], y[c._sz] = u[:n], u[n:2 * n], u[2 * n:]
                     self._pending.append((self.rec.k, float(t), bool(t >= c._t_right)))
                 else:
-                    consistent_row(c, t, u, modes, g, out=(y, yp))
+                    consistent_row(c, t, u, modes, g, out=self.rec.row_buffers(c.N))
                 self.rec.commit(t, modes, left)
             else:
                 self.rec.add(t, *(row or consistent_row(self.c, t, u, modes, g)), modes, left=left)
 
     def deferred_rates(self, YP):
-        """``None`` when every row of ``YP`` (the recorder's ``y'``) is filled; else a function that fills the
-        rows ``state`` left (``g(t, u)`` of each, from its row of ``y``, with the side of the offsets it had
-        then: the same numbers as at once) and returns ``YP``. A non-finite ``y'`` is refused there as the
-        recorder refuses a non-finite row."""
+        """``YP`` (the recorder's ``y'``) when every row of it is filled (zero rows when there are none); else a
+        function that fills the rows ``state`` left (``g(t, u)`` of each, from its row of ``y``, with the side of the offsets it had
+        then: the same numbers as at once) and returns ``YP`` (allocated then, zero, when no row had written
+        it: ``Recorder.row_buffer``). A non-finite ``y'`` is refused there as the recorder refuses a non-finite
+        row."""
         if not self._pending:
-            return None
+            return YP if YP is not None else np.zeros((self.rec.k, self.rec.yp_width))
         c, form, pending = self.c, self.form, list(self._pending)
-        Y = self.rec.Y
+        Y, rows, width = self.rec.Y, self.rec.k, self.rec.yp_width
         self._pending.clear()
 
         def fill():
+            nonlocal YP
+            if YP is None:
+                YP = np.zeros((rows, width))
             n = c.n
             for k, t, left in pending:
                 y = Y[k]
@@ -1400,8 +1404,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         return stats
     from ..compile.outputs import Trajectory
     T, Y, YP, L, MO = rec.arrays()
-    fill = out.deferred_rates(YP)
-    return Result(Trajectory(c, T, Y, YP if fill is None else fill, L, MO), events, stats, model.name)
+    return Result(Trajectory(c, T, Y, out.deferred_rates(YP), L, MO), events, stats, model.name)
 
 
 def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out, stats, extra, name, explicit,
