@@ -135,3 +135,57 @@ def envelope(p, q, r, rows, s):
         if top < best:
             best, at = top, j
     return at, best
+
+
+@njit(cache=True, inline="always")
+def _entry(indptr, indices, data, major, minor):
+    """The stored value at (``major``, ``minor``), summed over duplicates; 0 when absent."""
+    v = 0.0
+    for k in range(indptr[major], indptr[major + 1]):
+        if indices[k] == minor:
+            v += data[k]
+    return v
+
+
+@njit(cache=True, error_model="numpy")
+def mechanical_damping(indptr, indices, data, by_column, mass, kv, n):
+    """``ode_driver.damping_radius`` on the Jacobian ``[[0, I], [-M^-1 K, -M^-1 B]]`` of ``n`` coordinates
+    (CSR or CSC arrays; ``mass[kv]`` their masses): ``(True, b)`` when the top rows are ``[0, I]``, ``K`` and
+    ``B`` are symmetric (relative 1e-12) and ``K`` diagonally dominant with a non-negative diagonal, with ``b``
+    the largest row sum of ``|M^-1/2 B M^-1/2|`` (the spectral bound's ``q`` of those rows, the same sums in
+    the same order); else ``(False, 0)``."""
+    diag = np.zeros(n)
+    off = np.zeros(n)
+    q = np.zeros(n)
+    for major in range(indptr.shape[0] - 1):
+        for k in range(indptr[major], indptr[major + 1]):
+            minor = indices[k]
+            if by_column:
+                i, j = minor, major
+            else:
+                i, j = major, minor
+            v = data[k]
+            if i < n:                                  # x' = v: the identity, nothing else
+                if j != n + i or v != 1.0:
+                    return False, 0.0
+                continue
+            a, col = i - n, j % n                      # K (j < n) or B (j >= n), row a, column col
+            mi, mj = mass[kv[a]], mass[kv[col]]
+            # the transposed entry: J[n + col, j - (a vs col)] ... K_ba = -m_b J[n + b, a]
+            jt = a if j < n else n + a
+            vt = _entry(indptr, indices, data, jt, n + col) if by_column else \
+                _entry(indptr, indices, data, n + col, jt)
+            x, xt = mi * v, mj * vt                    # -K_ab and -K_ba (or B)
+            if abs(x - xt) > 1e-12 * max(abs(x), abs(xt)):
+                return False, 0.0
+            if j < n:
+                if a == col:
+                    diag[a] -= x
+                else:
+                    off[a] += abs(x)
+            else:
+                q[a] += abs(v) * math.sqrt(mi) / math.sqrt(mj)
+    for a in range(n):
+        if diag[a] < 0.0 or off[a] > diag[a] * (1.0 + 1e-12):
+            return False, 0.0
+    return True, q.max() if n else 0.0
