@@ -185,21 +185,3 @@ def test_bench_target_judgement_needs_time_and_error():
     assert by[("regmech default (auto) (best)", "scipy DOP853")][-1] == "met"         # 0.5x <= 1x
     assert by[("regmech default (auto)", "casadi cvodes")][-1] == "**not met**"       # 2.5x > 2x
     assert by[("regmech default (auto)", "casadi cvodes")][7] == "2.50x"
-
-
-def test_bench_judges_the_ode_form_path_at_the_same_rtol():
-    """The ODE-form row is judged at the hand run's own rtol (the same method and settings); the run at a looser
-    rtol whose error matches the hand run's is shown for reading only."""
-    import bench_peers as bp
-    case = bp.CASES["chain1000"]
-
-    def tool(label, group, t, err):
-        return bp.Tool(label, group, None, times=[t], cpu=[t], error=err, first=t)
-    tools = [tool("regmech default (auto)", "regmech", 3.0, 1e-6), tool("scipy DOP853", "scipy", 1.0, 1e-5),
-             tool("regmech scipy:DOP853", "regmech", 1.4, 1e-5),
-             tool("regmech scipy:DOP853 at 3 rtol", "regmech", 1.1, 3e-6)]
-    rows = {r[2]: r for r in bp.target_rows(case, 1e-6, tools)}
-    same = rows["regmech scipy:DOP853 (ODE-form path, same rtol)"]
-    assert same[7] == "1.40x" and same[-2] == "<= 1.3x" and same[-1] == "**not met**"
-    matched = rows["regmech scipy:DOP853 at rtol 3 r (ODE-form path, matched error)"]
-    assert matched[-2:] == ["-", "-"]
