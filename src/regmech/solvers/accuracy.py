@@ -44,10 +44,7 @@ How it is estimated, per family of solver:
   ``accuracy * RTOL_FACTOR[solver]``, times ``(accuracy / 1e-3) **
   RTOL_SLOPE`` below 1e-3 for ida on its native path, whose error grows
   faster than its tolerance shrinks and whose runs cost little more when
-  tighter, and ``accuracy * RTOL_FACTOR_UNCAPPED`` for DOP853 on the linear
-  form of a mechanical system, whose step cap does not scale with the
-  tolerance there (``first_rtol``; measured, see BENCHMARKS.md,
-  calibration), or
+  tighter (``first_rtol``; measured, see BENCHMARKS.md, calibration), or
   the user's ``rtol``; ``atol = ATOL_RATIO * r`` (or the
   user's ratio), scaled down to the motion when its smallest range of a kind
   is below ``ATOL_RESCALE`` (``motion_scale``; an atol made for a motion
@@ -137,16 +134,6 @@ FIXED_STEP = ("euler", "rk4", "abm", "expm")
 #: the first rtol of the pair is ``accuracy * RTOL_FACTOR[solver]``: measured (calibration in BENCHMARKS.md)
 RTOL_FACTOR = {"ida": 0.03, "scipy:Radau": 0.5, "scipy:DOP853": 0.1, "scipy:RK45": 0.04, "scipy:RK23": 0.04,
                "scipy:BDF": 0.01, "scipy:LSODA": 0.03, "convolution": 0.003}
-#: DOP853's factor on the linear form of a mechanical system (``dop853_uncapped``), where its step cap no longer
-#: scales with the tolerance on the spectral radius and its errors are scipy's own at the same rtol (10 to 30 times
-#: the rtol on the benchmark chains of 100 and 1,000 inertias, where the capped runs RTOL_FACTOR was measured on
-#: had been about 8 times more accurate). Measured on the 9 calibration cases of that class (the contract at
-#: 1e-2 .. 1e-6 against the calibration's references; the other cells refused, as before: stiff cases beyond
-#: DOP853's step budget): at 0.1 the pairs met 23 of the 45 cells and the 100-inertia chain took two pairs at 1e-3
-#: (51 ms, against 22 ms with the old cap); at 0.03 they met 24 (inertia_ratio_1e8 at 1e-5 and long_horizon at
-#: 1e-3 more, tiny_mass at 1e-2 less: its tighter pair runs into the step budget) in the same time (13.6 against
-#: 13.9 s over the cells met), and the chain takes one pair
-RTOL_FACTOR_UNCAPPED = 0.03
 #: ... times ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below RTOL_ANCHOR for ida on its native path
 #: (``native_served``): its global error grows faster than its tolerance shrinks (``error ~ C rtol^alpha``; the
 #: calibration of BENCHMARKS.md, 24 cases and 100 random drivetrains, first pair at 0.03 a: median estimate over
@@ -203,27 +190,13 @@ def check_accuracy(accuracy) -> float:
         f"{accuracy!r}")
 
 
-def first_rtol(solver: str, accuracy: float, native: bool = False, uncapped: bool = False) -> float:
+def first_rtol(solver: str, accuracy: float, native: bool = False) -> float:
     """The rtol of the first (looser) run of an adaptive solver's pair: ``accuracy * RTOL_FACTOR[solver]``, times
-    ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below the anchor for ida on its native path (``native``);
-    ``RTOL_FACTOR_UNCAPPED`` for DOP853 on a model whose step cap does not scale with the tolerance on the
-    spectral radius (``uncapped``: ``dop853_uncapped``)."""
-    r = accuracy * (RTOL_FACTOR_UNCAPPED if uncapped and solver == "scipy:DOP853" else RTOL_FACTOR.get(solver, 0.01))
+    ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below the anchor for ida on its native path (``native``)."""
+    r = accuracy * RTOL_FACTOR.get(solver, 0.01)
     if native and solver == "ida" and accuracy < RTOL_ANCHOR:
         r *= (accuracy / RTOL_ANCHOR) ** RTOL_SLOPE
     return r
-
-
-def dop853_uncapped(solver: str, c) -> bool:
-    """Whether ``solver`` is DOP853 on the linear form of a mechanical system, whose step cap scales with the
-    tolerance on the damping only (``ode_driver.damping_radius``, ``scipy_ivp.stability_cap``)."""
-    if solver != "scipy:DOP853":
-        return False
-    from .ode_driver import damping_radius
-    try:
-        return damping_radius(c) is not None
-    except Exception:       # noqa: BLE001 - a model the test cannot judge keeps the factor of the capped runs
-        return False
 
 
 def native_served(solver: str, c, options: dict) -> bool:
@@ -518,8 +491,7 @@ def _adaptive(model, solver, fn, t_start, t_end, dt_out, accuracy, options):
     if rtol0 is not None and not (isinstance(rtol0, (int, float)) and not isinstance(rtol0, bool) and rtol0 > 0):
         raise ParameterError(f"solver '{solver}': rtol must be a positive number, got {rtol0!r}")
     c = model.compile()
-    r = float(rtol0) if rtol0 is not None else first_rtol(solver, accuracy, native_served(solver, c, options),
-                                                          dop853_uncapped(solver, c))
+    r = float(rtol0) if rtol0 is not None else first_rtol(solver, accuracy, native_served(solver, c, options))
     # the stiffest link's round-off bounds the useful rtol (common.check_link_spread): the pair never goes
     # below it; an accuracy that would need a tighter one is refused naming the link
     floor = spread_rtol_floor(c) if options.get("stiff_check", True) else None

@@ -1155,7 +1155,7 @@ def _compiled_spectral_bound(J, c) -> float:
     return float(best)
 
 
-def damping_radius(c) -> float | None:
+def damping_radius(problem) -> float | None:
     """For the linear form of a mechanical system, a bound ``b`` of ``|lambda|`` over the eigenvalues of dg/du
     near the negative real axis; None for any other model.
 
@@ -1171,22 +1171,24 @@ def damping_radius(c) -> float | None:
     cap*), so its cap needs ``b``, not the spectral radius. Kept with the compiled system like the radius.
     """
     from ..compile.odeform import ode_form
+    c = problem.c
     form = ode_form(c)
     if not form.linear:
         return None
     kept = c.__dict__.setdefault("_spectral_radius", {})
     if "damping" not in kept:
-        kept["damping"] = _damping_radius_of(c, form)
+        kept["damping"] = _damping_radius_of(problem, form)
     return kept["damping"]
 
 
-def _damping_radius_of(c, form):
-    """``damping_radius`` computed (``c``: the compiled system, ``form``: its linear ODE form)."""
+def _damping_radius_of(problem, form):
+    """``damping_radius`` computed."""
+    c = problem.c
     n = len(c.Kv)
     if c.nz or len(c.Kx) != n or not np.array_equal(c.Kx, c.Kv) or n == 0 or not np.all(c.mass[c.Kv] > 0):
         return None
     try:
-        J = form.jacobian().tocsc()      # what ``ode_jacobian`` gives the spectral bound
+        J = ode_jacobian(problem, 0.0, None)
     except Exception:   # noqa: BLE001 - no Jacobian: the cap of any model (the spectral radius) applies
         return None
     if J.shape != (2 * n, 2 * n):

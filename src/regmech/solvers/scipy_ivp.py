@@ -340,7 +340,7 @@ def _scipy_solver(method):
             step_opts = dict(options)
             if "first_step" in step_opts:
                 step_opts["first_step"] = min(step_opts["first_step"], t_bound - t0)
-            damped = damping_radius(problem.c) if method in CAPPED and start_radius and start_radius[0] else None
+            damped = damping_radius(problem) if method in CAPPED and start_radius and start_radius[0] else None
             cap = stability_cap(method, start_radius[0] if start_radius else None, rtol, damped)
             if cap is not None:
                 step_opts["max_step"] = min(step_opts.get("max_step", np.inf), cap)
