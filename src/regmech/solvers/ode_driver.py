@@ -1066,13 +1066,34 @@ def spectral_bound(J, c, compiled=False) -> float:
     """
     if compiled and (sp.isspmatrix_csc(J) or sp.isspmatrix_csr(J)):
         return _compiled_spectral_bound(J, c)
-    J = _triplets(J)
+    if sp.isspmatrix_csc(J) or sp.isspmatrix_csr(J):
+        # the triplets of ``sp.coo_matrix(J)`` (the same arrays, in the same order) without its constructor:
+        # a sixth of the bound on a chain of 1,000 inertias
+        major = np.repeat(np.arange(len(J.indptr) - 1, dtype=J.indices.dtype), np.diff(J.indptr))
+        row, col = (J.indices, major) if sp.isspmatrix_csc(J) else (major, J.indices)
+        J = _Triplets(row, col, J.data, J.shape)
+    else:
+        J = sp.coo_matrix(J)
     if J.data.size == 0:
         return 0.0
+    nkx, nkv = len(c.Kx), len(c.Kv)
     size = J.shape[0]
-    sums = _bound_sums(J, c)
+    w = np.ones(size)
+    mass = np.where(c.mass > 0, c.mass, 1.0)
+    w[:nkx] = np.sqrt(mass[c.Kx])
+    w[nkx:nkx + nkv] = np.sqrt(mass[c.Kv])
+    e = np.zeros(size, int)
+    e[:nkx] = 1
+    val = np.abs(J.data) * w[J.row] / w[J.col]
+    power = e[J.row] - e[J.col]                 # -1, 0 or 1: the entry scales as s**power
+
+    parts = [np.where(power == k, val, 0.0) for k in (1, 0, -1)]
+
+    def sums(index):                            # p (times s), q, r (over s) of every row (or column)
+        return [np.bincount(index, weights=w, minlength=size) for w in parts]
+
     best = np.inf
-    for p, q, r in (sums[:3], sums[3:]):
+    for p, q, r in (sums(J.row), sums(J.col)):
         if not np.any(p) and not np.any(r):
             best = min(best, float(q.max()))
             continue
@@ -1100,34 +1121,6 @@ def spectral_bound(J, c, compiled=False) -> float:
     return float(best)
 
 
-def _triplets(J):
-    """``(row, col, data, shape)`` of a sparse matrix: for CSC and CSR the triplets of ``sp.coo_matrix(J)`` (the
-    same arrays, in the same order) without its constructor (a sixth of the bound on a chain of 1,000
-    inertias)."""
-    if sp.isspmatrix_csc(J) or sp.isspmatrix_csr(J):
-        major = np.repeat(np.arange(len(J.indptr) - 1, dtype=J.indices.dtype), np.diff(J.indptr))
-        row, col = (J.indices, major) if sp.isspmatrix_csc(J) else (major, J.indices)
-        return _Triplets(row, col, J.data, J.shape)
-    return sp.coo_matrix(J)
-
-
-def _bound_sums(J, c) -> list:
-    """``[p, q, r]`` of every row, then of every column (``spectral_bound``), of the triplets ``J``: the
-    sums of ``|J_ij| w_i / w_j`` over the entries that scale as ``s``, 1 and ``1 / s``, in storage order."""
-    nkx, nkv = len(c.Kx), len(c.Kv)
-    size = J.shape[0]
-    w = np.ones(size)
-    mass = np.where(c.mass > 0, c.mass, 1.0)
-    w[:nkx] = np.sqrt(mass[c.Kx])
-    w[nkx:nkx + nkv] = np.sqrt(mass[c.Kv])
-    e = np.zeros(size, int)
-    e[:nkx] = 1
-    val = np.abs(J.data) * w[J.row] / w[J.col]
-    power = e[J.row] - e[J.col]                 # -1, 0 or 1: the entry scales as s**power
-    parts = [np.where(power == k, val, 0.0) for k in (1, 0, -1)]
-    return [np.bincount(index, weights=w, minlength=size) for index in (J.row, J.col) for w in parts]
-
-
 def _compiled_spectral_bound(J, c) -> float:
     """``spectral_bound`` of a CSR or CSC matrix by the kernels of ``_bound_kernel`` (its docstring)."""
     from ._bound_kernel import envelope, sums_and_rows
@@ -1153,76 +1146,6 @@ def _compiled_spectral_bound(J, c) -> float:
         best = min(best, envelope(p, q, r, every, np.array([math.exp(centre)]))[1],
                    envelope(p, q, r, every, np.array([math.exp(math.log(scale))]))[1])
     return float(best)
-
-
-def damping_radius(problem) -> float | None:
-    """For the linear form of a mechanical system, a bound ``b`` of ``|lambda|`` over the eigenvalues of dg/du
-    near the negative real axis; None for any other model.
-
-    The class: ``u = (x, v)`` of the same coordinates, no device states, ``dg/du = [[0, I], [-M^-1 K,
-    -M^-1 B]]`` with positive masses, ``K`` and ``B`` symmetric and ``K`` diagonally dominant with a
-    non-negative diagonal (hence positive semi-definite): springs, dampers, inertias, sources, the linear
-    speed-dependent loads. For an eigenvector ``z``, ``lambda^2 mu + lambda beta + kappa = 0`` with ``mu =
-    z* M z > 0``, ``beta = z* B z`` and ``kappa = z* K z >= 0`` real, so a real eigenvalue has ``|lambda| <=
-    |beta| / mu`` and a complex one ``|Re lambda| = |beta| / (2 mu)``, both at most the largest eigenvalue of
-    ``M^-1/2 B M^-1/2`` in size, and ``b`` bounds that (its largest row sum of absolute values, the spectral
-    bound's ``q`` of those rows). Every eigenvalue within 60 degrees of the negative real axis thus has
-    ``|lambda| <= b``. DOP853's error estimate misses a step's error only there (``scipy_ivp``, *Stability
-    cap*), so its cap needs ``b``, not the spectral radius. Kept with the compiled system like the radius.
-    """
-    from ..compile.odeform import ode_form
-    c = problem.c
-    form = ode_form(c)
-    if not form.linear:
-        return None
-    kept = c.__dict__.setdefault("_spectral_radius", {})
-    if "damping" not in kept:
-        kept["damping"] = _damping_radius_of(problem, form)
-    return kept["damping"]
-
-
-def _damping_radius_of(problem, form):
-    """``damping_radius`` computed."""
-    c = problem.c
-    n = len(c.Kv)
-    if c.nz or len(c.Kx) != n or not np.array_equal(c.Kx, c.Kv) or n == 0 or not np.all(c.mass[c.Kv] > 0):
-        return None
-    try:
-        J = ode_jacobian(problem, 0.0, None)
-    except Exception:   # noqa: BLE001 - no Jacobian: the cap of any model (the spectral radius) applies
-        return None
-    if J.shape != (2 * n, 2 * n):
-        return None
-    if form._native is not None and (sp.isspmatrix_csc(J) or sp.isspmatrix_csr(J)):
-        from ._bound_kernel import mechanical_damping
-        ok, b = mechanical_damping(J.indptr, J.indices, J.data, sp.isspmatrix_csc(J), c.mass,
-                                   np.asarray(c.Kv, np.int64), n)
-        return float(b) if ok else None
-    return _mechanical_damping(J, c, n)
-
-
-def _mechanical_damping(J, c, n):
-    """``damping_radius``'s test and bound with scipy (the same ``b`` as ``_bound_kernel.mechanical_damping``:
-    the spectral bound's sums, in the storage order of ``J``)."""
-    A = sp.csr_matrix(J)
-    A.sum_duplicates()
-    top = A[:n]
-    if top.nnz != n or np.any(top.indices != n + np.arange(n)) or np.any(top.data != 1.0):
-        return None                 # one 1 per row, at column n + i
-    m = c.mass[c.Kv]
-    lower = sp.diags(m) @ A[n:]     # [-K, -B]
-    for X in (lower[:, :n], lower[:, n:]):
-        # symmetric entry by entry, to 1e-12 of the larger of the two
-        excess = abs(X - X.T) - 1e-12 * abs(X).maximum(abs(X.T))
-        if excess.nnz and np.any(excess.data > 0):
-            return None
-    K = -lower[:, :n]
-    d = K.diagonal()
-    off = np.asarray(abs(K).sum(axis=1)).ravel() - np.abs(d)
-    if np.any(d < 0) or np.any(off > d * (1 + 1e-12)):
-        return None
-    q = _bound_sums(_triplets(J), c)[1]
-    return float(q[n:].max())
 
 
 def spectral_radius(problem, t, u, above=None):

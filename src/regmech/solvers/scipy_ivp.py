@@ -55,22 +55,6 @@ to 4.0e-7 of the range at rtol 1e-8 and 1.7e-5 at 1e-6 for 16 % more steps
 (464 -> 540 at 1e-6; CoupledClutches and First keep their 45 and 66 steps). A model that is not
 stiff for the method never meets the cap. RK45 and RK23 keep their steps
 (errors 3e-6 and 4e-4 of the range there, within their tolerances' reach).
-Where the estimate fails (measured on the scalar test equation ``y' = lambda
-y`` over the left half-plane, ``hz = h lambda`` with ``|hz| <= 5.4``, the cap):
-only within 8 degrees of the negative real axis (the estimate 0.29 of the
-step's true error at ``hz = -5.4``); from 9 to 90 degrees it is at least
-the true error (at least 1.9 times it on the imaginary axis, up to the edge
-of stability at ``|hz| = 5.96``). So on the linear form of a mechanical
-system (symmetric stiffness and damping, ``ode_driver.damping_radius``),
-whose eigenvalues within 60 degrees of that axis are bounded by its
-damping alone, the tolerance-scaled cap applies to that bound, and the
-spectral radius only keeps the step at ``STABLE_CAP`` of the stability limit:
-on the benchmark chains (lightly damped: damping bound 4 1/s, radius 201
-1/s) the cap had held DOP853 at 92 steps where its tolerance asks for 62
-(10,000 inertias, rtol 1e-6; 214 against 143 at 1e-9), and the errors are now
-those of scipy's DOP853 by hand at the same rtol (2.6e-5 and 2.2e-8 of the
-range on 1,000 inertias at 1e-6 and 1e-9, against 2.4e-5 and 2.2e-8).
-Any other model keeps the cap on its spectral radius.
 The radius is taken once, so a mode or a nonlinear law that is stiffer
 later in the run is not covered (computing it per segment cost 70 % of a
 CoupledClutches run). Below ``rtol = CAP_RTOL`` (1e-3) the cap shrinks as
@@ -143,7 +127,7 @@ from ..errors import RegmechError, SimulationError
 from . import common, register
 from .common import ATOL_FLOOR, StepBudget, check_link_spread, scale_hint  # noqa: F401 (ATOL_FLOOR: re-exported)
 from .divergence import MAX_GROWTH
-from .ode_driver import Stepper, damping_radius, ode_jacobian_pattern, simulate_ode
+from .ode_driver import Stepper, ode_jacobian_pattern, simulate_ode
 from .options import (Integer, OptionSet, atol_option, chatter_options, max_events_option, max_growth_option,
                       rtol_option, step_option, stiff_check_option)
 
@@ -254,21 +238,14 @@ CAP_RTOL = 1e-3
 CAP_ORDER = 8
 
 
-def stability_cap(method, rho, rtol=None, damped=None):
+def stability_cap(method, rho, rtol=None):
     """The largest step [s] a capped method may take on a model whose dg/du has spectral radius ``rho``
     [1/s] at tolerance ``rtol`` (None: the cap of ``CAP_RTOL``), or None (no cap: the method is not capped,
-    or rho is zero or unknown). ``damped``: a bound of ``|lambda|`` over the eigenvalues near the negative
-    real axis (``ode_driver.damping_radius``), which then carry the cap's tolerance scaling alone; the rest
-    of the spectrum only keeps the step within ``STABLE_CAP`` of the stability limit (module docstring,
-    *Stability cap*)."""
+    or rho is zero or unknown)."""
     if method not in CAPPED or not rho or not np.isfinite(rho):
         return None
     scale = 1.0 if rtol is None else min(1.0, (float(rtol) / CAP_RTOL) ** (1.0 / CAP_ORDER))
-    if damped is None:
-        return STABLE_CAP * scale * EXPLICIT_STABILITY[method] / rho
-    near_real = min(float(damped), rho)
-    cap = STABLE_CAP * EXPLICIT_STABILITY[method] / rho
-    return cap if near_real <= 0 else min(cap, STABLE_CAP * scale * EXPLICIT_STABILITY[method] / near_real)
+    return STABLE_CAP * scale * EXPLICIT_STABILITY[method] / rho
 
 
 def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps):
@@ -340,8 +317,7 @@ def _scipy_solver(method):
             step_opts = dict(options)
             if "first_step" in step_opts:
                 step_opts["first_step"] = min(step_opts["first_step"], t_bound - t0)
-            damped = damping_radius(problem) if method in CAPPED and start_radius and start_radius[0] else None
-            cap = stability_cap(method, start_radius[0] if start_radius else None, rtol, damped)
+            cap = stability_cap(method, start_radius[0] if start_radius else None, rtol)
             if cap is not None:
                 step_opts["max_step"] = min(step_opts.get("max_step", np.inf), cap)
             if method not in SCALED_ATOL:
