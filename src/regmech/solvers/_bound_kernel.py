@@ -5,7 +5,9 @@ no import).
 The bound's numpy path makes about twenty passes and twenty arrays over the entries and rows of the
 Jacobian; cold, on a freshly compiled chain of 1,000 inertias, it cost 0.96 ms (6 % of the cheapest explicit
 run it guards), on 10,000 inertias 3.8 ms, of which the selection of the candidate rows
-(``np.argpartition`` of four keys) alone was 0.9 ms a side. Here, two kernels (a cached kernel costs a few ms to load in a fresh process, once):
+(``np.argpartition`` of four keys) alone was 0.9 ms a side. Here, two kernels (loading them from numba's
+cache costs 10-17 ms once per process, beside numba's own start-up of about a second; four had cost about as
+much):
 
 * ``sums_and_rows``: the row and column sums ``p, q, r`` in one pass over the stored entries, in the order
   ``np.bincount`` adds them (the storage order), with the same arithmetic: the same numbers. Then, for
