@@ -190,8 +190,8 @@ class OdeForm:
         vectorised = any(b.vectorised for g, *_ in self.plan.input_slots for b in g.banks)
         signals = None if isinstance(table, str) or self.slots or vectorised else table
         ih, fh = K.layout(self.n, self.n_c, packed[0][3], packed[0][:3], packed[1][:3], packed[2][:3],
-                              np.asarray(self.t0, np.float64), not self.t0_zero, compact, signals,
-                              np.ascontiguousarray(self.neg_mass, np.float64))
+                          np.asarray(self.t0, np.float64), not self.t0_zero, compact, signals,
+                          np.ascontiguousarray(self.neg_mass, np.float64))
         return K.linear_rhs, ih, fh, signals is not None
 
     def rhs(self, t, u, left=None):

@@ -514,10 +514,10 @@ class _Sink:
 
     def deferred_rates(self, YP):
         """``YP`` (the recorder's ``y'``) when every row of it is filled (zero rows when there are none); else a
-        function that fills the rows ``state`` left (``g(t, u)`` of each, from its row of ``y``, with the side of the offsets it had
-        then: the same numbers as at once) and returns ``YP`` (allocated then, zero, when no row had written
-        it: ``Recorder.row_buffer``). A non-finite ``y'`` is refused there as the recorder refuses a non-finite
-        row."""
+        function that fills the rows ``state`` left (``g(t, u)`` of each, from its row of ``y``, with the side of
+        the offsets it had then: the same numbers as at once) and returns ``YP`` (allocated then, zero, when no
+        row had written it: ``Recorder.row_buffer``). A non-finite ``y'`` is refused there as the recorder
+        refuses a non-finite row."""
         if not self._pending:
             return YP if YP is not None else np.zeros((self.rec.k, self.rec.yp_width))
         c, form, pending = self.c, self.form, list(self._pending)
@@ -1129,7 +1129,7 @@ def _compiled_spectral_bound(J, c) -> float:
     size = J.shape[0]
     sums, facts, *rows = sums_and_rows(J.indptr, J.indices, J.data, sp.isspmatrix_csc(J), c.mass,
                                        np.asarray(c.Kx, np.int64), np.asarray(c.Kv, np.int64), size, 33)
-    every = None
+    every = np.arange(size)              # the bound itself is the largest sum over every row
     best = np.inf
     for side in range(2):
         p, q, r = sums[3 * side], sums[3 * side + 1], sums[3 * side + 2]
@@ -1137,8 +1137,6 @@ def _compiled_spectral_bound(J, c) -> float:
         if not p_max and not r_max:          # sums of absolute values: nothing scales with s (NaN does)
             best = min(best, float(q.max()))
             continue
-        if every is None:
-            every = np.arange(size)
         centre = math.log(scale)
         for grid in _BOUND_GRIDS:
             log_s = centre + grid
