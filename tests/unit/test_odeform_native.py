@@ -164,3 +164,16 @@ def test_kernel_files_state_the_signal_formulas_they_were_written_against():
     from regmech.compile._native_signals import source_hash
     from regmech.solvers import _native_kernels
     assert K.SIGNALS_SOURCE == source_hash() == _native_kernels.SIGNALS_SOURCE
+
+
+@pytest.mark.parametrize("make", [lambda: benchmark_chain(300), lambda: tree(6, 12)], ids=["dia", "csr"])
+def test_rhs_into_writes_the_same_numbers_as_rhs(make):
+    # the Dormand-Prince integrators (solvers.dopri) have the kernel write each stage into their own rows
+    form = odeform.ode_form(make().compile())
+    assert form._native is not None
+    rng = np.random.default_rng(3)
+    for t in (0.0, 0.37, 1.2):
+        u = rng.normal(size=form.size)
+        out = np.full(form.size, np.nan)
+        form.rhs_into(t, u, out)
+        assert np.array_equal(out, form.rhs(t, u))

@@ -71,7 +71,7 @@ def test_rtol_on_a_fixed_step_solver_says_which_solvers_take_it(solver):
     with pytest.raises(rm.ParameterError) as err:
         two_masses().simulate(0.1, solver=solver, rtol=1e-6)
     msg = str(err.value)
-    assert "'rtol' is an option of convolution, ida, scipy:*" in msg and "step h" in msg and "tol" in msg
+    assert "'rtol' is an option of convolution, dop853, dopri5, ida, scipy:*" in msg and "step h" in msg and "tol" in msg
 
 
 def test_a_misspelt_time_argument_is_suggested_too():

@@ -129,9 +129,17 @@ def _fpart(ih, fh, k):
 
 @njit(cache=True, error_model="numpy")
 def linear_rhs(u, buf, t, left, ih, fh):
-    """``g(t, u)`` of the linear form (module docstring) as a new array; ``(ih, fh)`` from ``layout``.
-    With a signal table, its signals are evaluated at ``t`` (left limits when ``left``) into ``buf`` first;
-    the other slots of ``buf`` hold what Python wrote there. ``out`` (the rows of [tau; dz]), ``work`` (for a
+    """``g(t, u)`` of the linear form (module docstring) as a new array (``linear_rhs_into``)."""
+    g = np.empty(u.shape[0])
+    linear_rhs_into(u, buf, t, left, ih, fh, g)
+    return g
+
+
+@njit(cache=True, error_model="numpy")
+def linear_rhs_into(u, buf, t, left, ih, fh, g):
+    """``g(t, u)`` of the linear form (module docstring) written into ``g`` (an array of u's length that is not
+    ``u``); ``(ih, fh)`` from ``layout``. With a signal table, its signals are evaluated at ``t`` (left limits
+    when ``left``) into ``buf`` first; the other slots of ``buf`` hold what Python wrote there. ``out`` (the rows of [tau; dz]), ``work`` (for a
     general V) and ``acc`` (length n) are scratch. A compact V (one term per row: ``out[v_rows] += v_vals *
     buf[v_cols]``) when ``v_rows`` is not empty, else the operator ``vi, vf`` (or none)."""
     n, n_c, rows = ih[H_N], ih[H_NC], ih[H_ROWS]
@@ -156,7 +164,6 @@ def linear_rhs(u, buf, t, left, ih, fh):
         work[:] = 0.0
         _product(ih[H_VK], vi, vf, rows, buf.shape[0], buf, work)
         out += work
-    g = np.empty(size)
     g[:n] = u[n:2 * n]
     if n_c:
         acc[:] = 0.0
@@ -167,4 +174,3 @@ def linear_rhs(u, buf, t, left, ih, fh):
     else:
         g[n:2 * n] = 0.0
     g[2 * n:] = out[n_c:]
-    return g

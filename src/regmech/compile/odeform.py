@@ -169,10 +169,10 @@ class OdeForm:
             self._native = self._native_arguments() if NATIVE and self.on_u else None
 
     def _native_arguments(self):
-        """``(kernel, ih, fh, signals)`` of ``_odeform_kernels.linear_rhs`` (``layout``); ``signals``: the
-        kernel evaluates the signals (else Python writes them into ``buf``: a signal of another class, an offset
-        not linear in its signals, or a bank of many sines or steps, which one numpy expression evaluates and
-        whose sin need not round as the C library's does). None when a matrix is dense (BLAS adds its products
+        """``(kernel, ih, fh, signals, kernel_into)`` of ``_odeform_kernels.linear_rhs`` (``layout``) and its
+        ``linear_rhs_into``; ``signals``: the kernel evaluates the signals (else Python writes them into
+        ``buf``: a signal of another class, an offset not linear in its signals, or a bank of many sines or
+        steps, which one numpy expression evaluates and whose sin need not round as the C library's does). None when a matrix is dense (BLAS adds its products
         in an order of its own) or numba is not installed."""
         try:
             from . import _odeform_kernels as K
@@ -192,14 +192,14 @@ class OdeForm:
         ih, fh = K.layout(self.n, self.n_c, packed[0][3], packed[0][:3], packed[1][:3], packed[2][:3],
                           np.asarray(self.t0, np.float64), not self.t0_zero, compact, signals,
                           np.ascontiguousarray(self.neg_mass, np.float64))
-        return K.linear_rhs, ih, fh, signals is not None
+        return K.linear_rhs, ih, fh, signals is not None, K.linear_rhs_into
 
     def rhs(self, t, u, left=None):
         """``[v; -M^-1 S^T tau; dz]`` (linear form only; see the module docstring). ``left``: the side of the
         time-varying offsets at a breakpoint (default: the current segment's, ``t >= c._t_right``)."""
         c, n, n_c = self.c, self.n, self.n_c
         if self._native is not None:
-            kernel, ih, fh, signals = self._native
+            kernel, ih, fh, signals, _ = self._native
             if left is None:
                 left = t >= c._t_right
             if not signals and self.V is not None:
@@ -229,6 +229,19 @@ class OdeForm:
             g[n:2 * n] = 0.0
         g[2 * n:] = out[n_c:]
         return g
+
+    def rhs_into(self, t, u, out):
+        """``rhs(t, u)`` written into ``out`` (length ``size``, not ``u``): the compiled kernel writes there
+        directly (an integrator that keeps its stages in rows of one array saves a copy per stage); the Python
+        path copies."""
+        if self._native is None:
+            out[:] = self.rhs(t, u)
+            return
+        _, ih, fh, signals, into = self._native
+        left = t >= self.c._t_right
+        if not signals and self.V is not None:
+            self._signals_into_buf(t, left)
+        into(np.ascontiguousarray(u, dtype=np.float64), self.buf, float(t), bool(left), ih, fh, out)
 
     def _signals_into_buf(self, t, left):
         """The time-varying offsets and signal values at t into ``buf`` (``left``: None for the side of the

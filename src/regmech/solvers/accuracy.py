@@ -134,6 +134,9 @@ FIXED_STEP = ("euler", "rk4", "abm", "expm")
 #: the first rtol of the pair is ``accuracy * RTOL_FACTOR[solver]``: measured (calibration in BENCHMARKS.md)
 RTOL_FACTOR = {"ida": 0.03, "scipy:Radau": 0.5, "scipy:DOP853": 0.1, "scipy:RK45": 0.04, "scipy:RK23": 0.04,
                "scipy:BDF": 0.01, "scipy:LSODA": 0.03, "convolution": 0.003}
+#: regmech's own Dormand-Prince integrators take the steps of scipy's (``dopri``; tests/unit/test_dopri.py), so
+#: scipy's calibration is theirs
+RTOL_FACTOR.update({"dopri5": RTOL_FACTOR["scipy:RK45"], "dop853": RTOL_FACTOR["scipy:DOP853"]})
 #: ... times ``(accuracy / RTOL_ANCHOR) ** RTOL_SLOPE`` below RTOL_ANCHOR for ida on its native path
 #: (``native_served``): its global error grows faster than its tolerance shrinks (``error ~ C rtol^alpha``; the
 #: calibration of BENCHMARKS.md, 24 cases and 100 random drivetrains, first pair at 0.03 a: median estimate over

@@ -74,12 +74,21 @@ class OdeProblem:
         # the linear form has no modes: its right-hand side is called without the dispatch of ``ode_rhs`` (not when
         # ``ode_rhs`` is wrapped on the instance: a work budget, ``bench.guard``, counts the calls there)
         self._linear_rhs = form.rhs if form.linear and "ode_rhs" not in compiled.__dict__ else None
+        self._linear_rhs_into = form.rhs_into if self._linear_rhs is not None else None
 
     def rhs(self, t, u):
         self.nfev += 1
         if self._linear_rhs is not None:
             return self._linear_rhs(t, u)
         return self.c.ode_rhs(t, u, self.modes)
+
+    def rhs_into(self, t, u, out):
+        """``rhs(t, u)`` written into ``out`` (not ``u``): directly by the linear form's kernel, else a copy."""
+        if self._linear_rhs_into is not None:
+            self.nfev += 1
+            self._linear_rhs_into(t, u, out)
+        else:
+            out[:] = self.rhs(t, u)
 
     def jacobian(self, t, u, g=None):
         """``dg/du`` (scipy CSC) by forward differences, one evaluation per column group."""

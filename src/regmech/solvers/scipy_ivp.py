@@ -124,7 +124,7 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from ..errors import RegmechError, SimulationError
-from . import common, register
+from . import common, dopri, register
 from .common import ATOL_FLOOR, StepBudget, check_link_spread, scale_hint  # noqa: F401 (ATOL_FLOOR: re-exported)
 from .divergence import MAX_GROWTH
 from .ode_driver import Stepper, ode_jacobian_pattern, simulate_ode
@@ -154,8 +154,9 @@ class StateScale(common.StateScale):
 class ScipyStepper(Stepper):
     """One scipy ``OdeSolver`` per segment."""
 
-    def __init__(self, method, problem, t0, u0, t_bound, budget=None, scale=None, **options):
-        cls = METHODS[method]
+    def __init__(self, method, problem, t0, u0, t_bound, budget=None, scale=None, cls=None, **options):
+        self.label = f"scipy {method}" if cls is None else f"solver '{cls.solver_name}'"
+        cls = METHODS[method] if cls is None else cls
         if method in ("Radau", "BDF"):
             options["jac_sparsity"] = ode_jacobian_pattern(problem.c)
         elif method == "LSODA":
@@ -167,6 +168,8 @@ class ScipyStepper(Stepper):
         if scale is not None:
             scale.see(u0)
             options["atol"] = scale.tolerances()
+        if cls in dopri.CLASSES.values():
+            options["fun_into"] = problem.rhs_into          # stages written in place (``dopri``)
         self.solver = cls(problem.rhs, t0, u0, t_bound, **options)
         # RK, Radau and BDF read ``self.atol`` at every step; LSODA keeps its tolerances in Fortran
         self._retune = scale is not None and scale.scalar and method != "LSODA"
@@ -190,11 +193,11 @@ class ScipyStepper(Stepper):
         except (RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
             # scipy's own failures inside a step (an LU that is exactly singular, an overflow) become ours
             raise SimulationError(
-                f"scipy {self.method} failed at t={self.solver.t:.6g} in model '{self.problem.c.model.name}': "
+                f"{self.label} failed at t={self.solver.t:.6g} in model '{self.problem.c.model.name}': "
                 f"{type(exc).__name__}: {exc}.{scale_hint(self.problem.c)} Try 'ida' or check the parameters."
             ) from exc
         if self.solver.status == "failed":
-            raise SimulationError(f"scipy {self.method} failed at t={self.solver.t:.6g} in model "
+            raise SimulationError(f"{self.label} failed at t={self.solver.t:.6g} in model "
                                   f"'{self.problem_name}': {msg}. Try another rtol or a stiff solver (ida)")
         self.t_old, self.t, self.u = self.solver.t_old, self.solver.t, self.solver.y
         self._dense = None
@@ -285,10 +288,12 @@ def _scipy_options(method) -> OptionSet:
     )
 
 
-def _scipy_solver(method):
-    name = f"scipy:{method}"
+def _scipy_solver(method, name=None, cls=None):
+    """Register ``scipy:<method>`` (scipy's class), or ``name`` run by ``cls``, an integrator of the same method
+    (``dopri``), which then shares the method's step cap, scaled atol, stiffness check and step budget."""
+    name = f"scipy:{method}" if name is None else name
 
-    @register(name, _scipy_options(method))
+    @register(name, _scipy_options(method) if cls is None else _own_options(name, method, cls))
     def simulate_scipy(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, first_step=None,
                        max_step=None, max_events=100000, chatter_window=None, chatter_count=50,
                        max_growth=MAX_GROWTH, max_steps=None, stiff_check=True):
@@ -325,17 +330,30 @@ def _scipy_solver(method):
             elif not scales:
                 scales.append(StateScale(atol, problem.c))
             stepper = ScipyStepper(method, problem, t0, u0, t_bound, budget=budget,
-                                   scale=scales[0] if scales else None, **step_opts)
+                                   scale=scales[0] if scales else None, cls=cls, **step_opts)
             stepper.problem_name = model.name
             return stepper
 
         return simulate_ode(model, name, make, t_start, t_end, dt_out, max_events=max_events,
                             chatter_window=chatter_window, chatter_count=chatter_count, max_growth=max_growth)
 
-    simulate_scipy.__doc__ = f"scipy.integrate.{method} on the ODE form (see regmech.solvers.scipy_ivp)."
-    simulate_scipy.__name__ = f"simulate_scipy_{method}"
+    simulate_scipy.__doc__ = (f"scipy.integrate.{method} on the ODE form (see regmech.solvers.scipy_ivp)." if cls is None
+                              else f"{cls.__doc__} (see regmech.solvers.dopri and regmech.solvers.scipy_ivp)")
+    simulate_scipy.__name__ = f"simulate_scipy_{method}" if cls is None else f"simulate_{name}"
     return simulate_scipy
+
+
+def _own_options(name, method, cls) -> OptionSet:
+    opts = _scipy_options(method)
+    opts.about = (f"regmech's Dormand-Prince integrator '{name}' on the ODE form: the method and step control of "
+                  f"scipy's {method}, its stages summed in place (local error control by rtol/atol; see "
+                  f"regmech.solvers.dopri)")
+    return opts
 
 
 for _method in METHODS:
     _scipy_solver(_method)
+
+#: regmech's own integrators of scipy's explicit Dormand-Prince methods (``dopri``): ``dopri5`` and ``dop853``
+for _cls in dopri.CLASSES.values():
+    _scipy_solver(_cls.method, _cls.solver_name, _cls)

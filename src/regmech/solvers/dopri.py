@@ -1,0 +1,376 @@
+"""regmech's own Dormand-Prince integrators: ``dopri5`` (order 5(4)) and ``dop853`` (order 8(5,3)).
+
+The same methods as ``scipy:RK45`` and ``scipy:DOP853`` (Dormand and Prince's tableaus, read from scipy's
+classes; Hairer, Norsett and Wanner, *Solving Ordinary Differential Equations I*, sec. II.4-II.6), with the
+same step control, so that on the same model and tolerances they take the same steps and return the same
+values up to round-off (``tests/unit/test_dopri.py`` holds them to it):
+
+* a step ``h`` from ``(t, y)`` with ``f = g(t, y)``: stages ``K_0 = f``,
+  ``K_s = g(t + c_s h, y + h sum_{j<s} a_sj K_j)``; ``y_new = y + h sum_j b_j K_j``; ``K_S = g(t + h, y_new)``
+  is the next step's ``f`` (first same as last);
+* the error, measured in ``scale_i = atol_i + rtol max(|y_i|, |y_new_i|)``: for ``dopri5`` the RMS of
+  ``h sum_j e_j K_j / scale``; for ``dop853`` ``|h| E5^2 / sqrt(n (E5^2 + 0.01 E3^2))`` with ``E5``, ``E3``
+  the 2-norms of the 5th- and 3rd-order estimates over ``scale`` (Hairer's blend);
+* accepted when that norm is below 1; the next step is ``h * min(10, 0.9 norm^(-1/(q+1)))`` (q = 4 or 7; no
+  growth right after a rejection), a rejected one is retried at ``h * max(0.2, 0.9 norm^(-1/(q+1)))``;
+  every step at most ``max_step``, never below ten ulps of ``t`` (a run that needs less fails);
+* the first step from Hairer's estimate (sec. II.4) unless ``first_step`` is given;
+* dense output: ``dopri5`` the quartic of the stages (``P``); ``dop853`` the 7th-degree interpolant of three
+  extra stages, made only for a step an output instant or an event falls in.
+
+Why a second implementation: scipy forms each stage's argument by a matrix product into a new array, scales
+it into another and adds the state into a third, and its error norms make three more; on a chain of 10,000
+inertias (20,000 states) that bookkeeping was two thirds of a scipy RK45 run, the right-hand side one third.
+Here one pass per stage writes ``y + h sum a_sj K_j`` into a buffer the integrator keeps, and one pass gives
+the error norm (compiled when numba is installed, ``_dopri_kernels``; else numpy into the same buffers, three
+passes per stage, no new arrays; ``compiled_passes``). On small models the gain is the Python around each
+stage.
+
+The classes follow scipy's ``OdeSolver`` protocol as far as ``scipy_ivp.ScipyStepper`` uses it (``step``,
+``dense_output``, ``t``, ``t_old``, ``y``, ``status``, a settable ``atol``), so both families share one
+driver, one stiffness check, one step cap and one scaled atol (``scipy_ivp``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+from scipy.integrate import DOP853 as _ScipyDOP853
+from scipy.integrate import RK45 as _ScipyRK45
+
+#: the compiled passes (``_dopri_kernels``) once loaded; None when numba is not installed (or cannot load)
+_UNLOADED = object()
+_kernels = _UNLOADED
+#: a model of fewer states takes the compiled passes only when numba is loaded already: they save 10-30 % of a
+#: small run (a chain of 10 inertias, 20 states: 23 against 27 ms by RK45), which would not repay numba's
+#: import (about 0.3 s) in a process that makes one such run; from this size on the form's own right-hand side
+#: is compiled (``compile.odeform``), which loads numba anyway
+COMPILED_MIN_STATES = 100
+
+
+def compiled_passes(n: int):
+    """The module of compiled passes for an integrator of ``n`` states, or None (numpy's passes)."""
+    global _kernels
+    if _kernels is None or (_kernels is _UNLOADED and n < COMPILED_MIN_STATES and "numba" not in sys.modules):
+        return None
+    if _kernels is _UNLOADED:
+        try:
+            from . import _dopri_kernels
+            _kernels = _dopri_kernels
+        except (ImportError, OSError, AttributeError):    # no numba, or one that cannot load (as ida_native)
+            _kernels = None
+    return _kernels
+
+SAFETY = 0.9          # the step factor's safety margin
+MIN_FACTOR = 0.2      # the most a rejected step shrinks at once
+MAX_FACTOR = 10.0     # the most an accepted step grows at once
+
+
+def _rms(x) -> float:
+    return float(np.linalg.norm(x)) / math.sqrt(x.size) if x.size else 0.0
+
+
+def initial_step(fun, t0, y0, f0, t_bound, max_step, order, rtol, atol) -> float:
+    """Hairer's starting step (sec. II.4) [s]: ``h0 = 0.01 d0 / d1`` from the sizes ``d0`` of ``y0`` and ``d1``
+    of ``f0`` in the tolerance's scale (1e-6 s when either is below 1e-5), then ``h1 = (0.01 / max(d1, d2))^(1 /
+    (order + 1))`` with ``d2`` the change of ``f`` over an Euler step of ``h0``; the smallest of ``100 h0``,
+    ``h1``, the interval and ``max_step``. One extra evaluation of ``fun``."""
+    span = abs(t_bound - t0)
+    if y0.size == 0:
+        return math.inf
+    if span == 0.0:
+        return 0.0
+    direction = 1.0 if t_bound >= t0 else -1.0
+    scale = atol + np.abs(y0) * rtol
+    d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, span)
+    f1 = fun(t0 + h0 * direction, y0 + h0 * direction * f0)
+    d2 = _rms((f1 - f0) / scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
+    return min(100.0 * h0, h1, span, max_step)
+
+
+def _stage_numpy(y, K, coef, s, h, out, work):
+    """``out = y + h sum_{j<s} coef_j K_j`` without new arrays (``work``: length-n scratch)."""
+    np.dot(coef[:s], K[:s], out=work)
+    work *= h
+    np.add(y, work, out=out)
+
+
+class DormandPrince:
+    """One explicit embedded Runge-Kutta integrator of ``y' = fun(t, y)`` (module docstring); subclasses give
+    the tableau. ``fun(t, y)`` returns a new array each call (the state's derivative at a step's end is kept);
+    ``fun_into(t, y, out)``, when given, writes the same values into ``out`` (a row of the stages: no copy).
+    ``atol``: scalar or array of length n; ``rtol`` scalar."""
+
+    order: int
+    error_estimator_order: int
+    n_stages: int
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+
+    TOO_SMALL_STEP = "Required step size is less than spacing between numbers."
+
+    def __init__(self, fun, t0, y0, t_bound, max_step=np.inf, rtol=1e-3, atol=1e-6, first_step=None,
+                 fun_into=None):
+        self.fun = fun
+        self.fun_into = fun_into
+        self.t = float(t0)
+        self.t_old = None
+        self.t_bound = float(t_bound)
+        self.direction = 1.0 if self.t_bound >= self.t else -1.0
+        self.y = np.array(y0, dtype=np.float64)          # a copy: the caller's start is never written
+        self.n = self.y.size
+        self.max_step = float(max_step)
+        self.rtol = float(rtol)
+        self.atol = atol
+        self.nfev = 0
+        self.njev = 0
+        self.nlu = 0
+        self.status = "running" if self.n and self.t != self.t_bound else "finished"
+        self._k = compiled_passes(self.n)
+        self.f = self._eval(self.t, self.y)
+        S = self.n_stages
+        self.K = np.empty((self.K_rows(), self.n))
+        self._work = np.empty(self.n)                    # stage arguments are built here
+        self._sum = np.empty(self.n)                     # numpy path's scratch
+        self._a_rows = [np.ascontiguousarray(self.A[s, :s]) for s in range(S)]
+        self._b = np.ascontiguousarray(self.B)
+        self.error_exponent = -1.0 / (self.error_estimator_order + 1)
+        self.y_old = None
+        self.h_previous = None
+        if first_step is None:
+            self.h_abs = initial_step(self._eval, self.t, self.y, self.f, self.t_bound, self.max_step,
+                                      self.error_estimator_order, self.rtol, self._atol)
+        else:
+            self.h_abs = float(first_step)
+
+    # ------------------------------------------------------------------ tolerances
+    @property
+    def atol(self):
+        return self._atol
+
+    @atol.setter
+    def atol(self, value):
+        # one array of length n, whatever was given (the compiled norm reads one entry per state)
+        self._atol = np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float64), (self.n,)))
+
+    def K_rows(self) -> int:
+        return self.n_stages + 1
+
+    def _eval(self, t, y):
+        self.nfev += 1
+        return self.fun(t, y)
+
+    def _eval_into(self, t, y, row):
+        """``K[row] = fun(t, y)``, written there by ``fun_into`` when given (no copy)."""
+        self.nfev += 1
+        if self.fun_into is not None:
+            self.fun_into(t, y, self.K[row])
+        else:
+            self.K[row] = self.fun(t, y)
+
+    def _stage(self, y, coef, s, h, out):
+        if self._k is not None:
+            self._k.stage(y, self.K, coef, s, h, out)
+        else:
+            _stage_numpy(y, self.K, coef, s, h, out, self._sum)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self):
+        """One accepted step (retrying rejected ones); returns None, or the failure's message (``status``
+        becomes ``"failed"``); ``"finished"`` once ``t_bound`` is reached."""
+        if self.status != "running":
+            raise RuntimeError("attempt to step on a failed or finished solver")
+        ok = self._step_impl()
+        if not ok:
+            self.status = "failed"
+            return self.TOO_SMALL_STEP
+        if self.direction * (self.t - self.t_bound) >= 0:
+            self.status = "finished"
+        return None
+
+    def _step_impl(self) -> bool:
+        t, y, f = self.t, self.y, self.f
+        min_step = 10.0 * abs(np.nextafter(t, self.direction * np.inf) - t)
+        h_abs = min(max(self.h_abs, min_step), self.max_step)
+        rejected = False
+        K, S = self.K, self.n_stages
+        while True:
+            if h_abs < min_step:
+                return False
+            t_new = t + h_abs * self.direction
+            if self.direction * (t_new - self.t_bound) > 0:
+                t_new = self.t_bound
+            h = t_new - t
+            h_abs = abs(h)
+            K[0] = f
+            for s in range(1, S):
+                self._stage(y, self._a_rows[s], s, h, self._work)
+                self._eval_into(t + self.C[s] * h, self._work, s)
+            y_new = np.empty(self.n)
+            self._stage(y, self._b, S, h, y_new)
+            f_new = self._eval(t + h, y_new)
+            K[S] = f_new
+            norm = self._error_norm(y, y_new, h)
+            if not math.isfinite(norm):
+                # NaN or inf in a stage: shrink as for a large error; the driver's finiteness and divergence
+                # checks name the cause when the step cannot recover (scipy does the same: NaN < 1 is False)
+                norm = math.inf
+            if norm < 1.0:
+                factor = MAX_FACTOR if norm == 0.0 else min(MAX_FACTOR, SAFETY * norm ** self.error_exponent)
+                if rejected:
+                    factor = min(1.0, factor)
+                h_abs *= factor
+                break
+            h_abs *= max(MIN_FACTOR, SAFETY * norm ** self.error_exponent)
+            rejected = True
+        self.h_previous = h
+        self.y_old = y
+        self.t_old = t
+        self.t = t_new
+        self.y = y_new
+        self.h_abs = h_abs
+        self.f = f_new
+        return True
+
+    def _error_norm(self, y, y_new, h) -> float:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def dense_output(self):  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class Dopri5(DormandPrince):
+    """Dormand-Prince 5(4) with its quartic dense output (the method of ``scipy:RK45``)."""
+
+    solver_name, method = "dopri5", "RK45"
+
+    order = _ScipyRK45.order
+    error_estimator_order = _ScipyRK45.error_estimator_order
+    n_stages = _ScipyRK45.n_stages
+    A, B, C = _ScipyRK45.A, _ScipyRK45.B, _ScipyRK45.C
+    E = np.ascontiguousarray(_ScipyRK45.E)
+    P = np.ascontiguousarray(_ScipyRK45.P)
+
+    def _error_norm(self, y, y_new, h) -> float:
+        if self._k is not None:
+            return self._k.rms_error(self.K, self.E, h, y, y_new, self._atol, self.rtol)
+        scale = self._atol + np.maximum(np.abs(y), np.abs(y_new)) * self.rtol
+        err = np.dot(self.E, self.K, out=self._sum)
+        err *= h
+        err /= scale
+        return _rms(err)
+
+    def dense_output(self):
+        """The step's quartic ``y(t_old + x h) = y_old + h sum_j (sum_k P_jk x^(k+1)) K_j`` (``StepOutput``)."""
+        P = self.P
+
+        def weights(x):
+            return 0.0, P @ (x ** np.arange(1, P.shape[1] + 1))
+        return StepOutput(self, weights, P.shape[0])
+
+
+class Dop853(DormandPrince):
+    """Dormand-Prince 8(5,3) with its 7th-degree dense output (the method of ``scipy:DOP853``)."""
+
+    solver_name, method = "dop853", "DOP853"
+
+    order = _ScipyDOP853.order
+    error_estimator_order = _ScipyDOP853.error_estimator_order
+    n_stages = _ScipyDOP853.n_stages
+    A, B, C = _ScipyDOP853.A, _ScipyDOP853.B, _ScipyDOP853.C
+    E3 = np.ascontiguousarray(_ScipyDOP853.E3)
+    E5 = np.ascontiguousarray(_ScipyDOP853.E5)
+    D = np.ascontiguousarray(_ScipyDOP853.D)
+    A_EXTRA = _ScipyDOP853.A_EXTRA
+    C_EXTRA = _ScipyDOP853.C_EXTRA
+
+    def K_rows(self) -> int:
+        # the 13 stages of a step and the three more of its dense output (rows 13-15)
+        return self.n_stages + 1 + len(self.C_EXTRA)
+
+    def _error_norm(self, y, y_new, h) -> float:
+        S1 = self.n_stages + 1
+        if self._k is not None:
+            e5, e3 = self._k.blended_sums(self.K, self.E5, self.E3, S1, y, y_new, self._atol, self.rtol)
+        else:
+            scale = self._atol + np.maximum(np.abs(y), np.abs(y_new)) * self.rtol
+            err = np.dot(self.E5, self.K[:S1], out=self._sum)
+            err /= scale
+            e5 = float(np.dot(err, err))
+            err = np.dot(self.E3, self.K[:S1], out=self._sum)
+            err /= scale
+            e3 = float(np.dot(err, err))
+        if e5 == 0.0 and e3 == 0.0:
+            return 0.0
+        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * self.n)
+
+    def dense_output(self):
+        """The step's 7th-degree interpolant (Hairer's contd8; ``StepOutput``) from three extra stages, made
+        here once per step asked.
+
+        Hairer's form ``y_old + x (F_0 + (1 - x)(F_1 + x (F_2 + (1 - x)(... F_6))))`` with ``F_0 = dy = y - y_old``,
+        ``F_1 = h K_0 - dy``, ``F_2 = 2 dy - h (f + K_0)`` (``f = K_12``, the step's end) and ``F_3+k = h sum_j
+        D_kj K_j`` is, with ``b_k(x)`` the product of the factors in front of ``F_k`` (``x``, ``x (1 - x)``,
+        ``x^2 (1 - x)``, ...), ``y_old + c dy + h sum_j w_j K_j`` with ``c = b_0 - b_1 + 2 b_2`` and ``w_j = sum_k
+        b_3+k D_kj``, plus ``b_1 - b_2`` at ``j = 0`` and ``-b_2`` at ``j = 12``: one pass over the stages per
+        instant instead of seven vectors made and summed."""
+        K, h, t0, y0 = self.K, self.h_previous, self.t_old, self.y_old
+        S1 = self.n_stages + 1
+        for i, (a, c) in enumerate(zip(self.A_EXTRA, self.C_EXTRA)):
+            s = S1 + i
+            self._stage(y0, np.ascontiguousarray(a[:s]), s, h, self._work)
+            self._eval_into(t0 + c * h, self._work, s)
+        D, last = self.D, self.n_stages
+
+        def weights(x):
+            u = 1.0 - x
+            b = np.array([x, x * u, x * x * u, (x * u) ** 2, x ** 3 * u * u, (x * u) ** 3, x ** 4 * u ** 3])
+            w = b[3:] @ D
+            w[0] += b[1] - b[2]
+            w[last] -= b[2]
+            return b[0] - b[1] + 2.0 * b[2], w
+        return StepOutput(self, weights, D.shape[1])
+
+
+class StepOutput:
+    """The last step's dense output, ``y(t_old + x h) = y_old + c(x) (y - y_old) + h sum_j w_j(x) K_j``: one
+    pass over the integrator's stages per instant (``_dopri_kernels.blend``), for ``t`` a number (an array of
+    n) or an array of m instants (``(n, m)``, as scipy's dense output). It reads the stages in place, so it
+    holds only until the integrator's next step (a later call raises)."""
+
+    def __init__(self, solver, weights, rows):
+        self.solver, self.weights, self.rows = solver, weights, rows
+        self.t_old, self.h, self.y_old, self.y = solver.t_old, solver.h_previous, solver.y_old, solver.y
+        self.K = solver.K
+
+    def _at(self, t):
+        if self.solver.y is not self.y:
+            raise RuntimeError("a Dormand-Prince dense output read after its integrator took another step")
+        c, w = self.weights((float(t) - self.t_old) / self.h)
+        w = np.ascontiguousarray(w, dtype=np.float64)
+        out = np.empty(self.y_old.size)
+        if self.solver._k is not None:
+            self.solver._k.blend(self.y_old, self.y, c, self.K, w, self.rows, self.h, out)
+        else:
+            np.dot(w, self.K[:self.rows], out=out)
+            out *= self.h
+            out += self.y_old + c * (self.y - self.y_old)
+        return out
+
+    def __call__(self, t):
+        if np.ndim(t) == 0:
+            return self._at(t)
+        return np.stack([self._at(tq) for tq in np.asarray(t, float)], axis=1)
+
+
+#: the classes by their solver name (``simulate(solver=...)``)
+CLASSES = {cls.solver_name: cls for cls in (Dopri5, Dop853)}

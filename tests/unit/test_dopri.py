@@ -1,0 +1,172 @@
+"""regmech's own Dormand-Prince integrators (``solvers.dopri``: ``dopri5``, ``dop853``, issue 15) take scipy's steps
+and give scipy's values up to round-off, compiled or not; their dense output, refusals and accuracy contract."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import DOP853, RK45
+
+import regmech as rm
+from regmech.bench.hard_models import benchmark_chain
+from regmech.solvers import dopri
+
+PAIRS = [(dopri.Dopri5, RK45), (dopri.Dop853, DOP853)]
+SAME_METHOD = [("dopri5", "scipy:RK45"), ("dop853", "scipy:DOP853")]
+
+
+def van_der_pol(t, y):
+    """A forced nonlinear oscillator (mu = 5): steps that grow and shrink by orders of magnitude."""
+    return np.array([y[1], 5.0 * (1.0 - y[0] ** 2) * y[1] - y[0] + math.sin(3.0 * t)])
+
+
+def spring_chain(n):
+    """A forced chain of n unit masses (springs 1e4, dampers 1): ``y = (x, v)``."""
+    def rhs(t, y):
+        x, v = y[:n], y[n:]
+        f = 1e4 * (x[1:] - x[:-1]) + (v[1:] - v[:-1])
+        a = np.zeros(n)
+        a[:-1] += f
+        a[1:] -= f
+        a[0] += 10.0 * math.sin(31.4 * t)
+        a[-1] -= 1e3 * x[-1]
+        return np.concatenate((v, a))
+    return rhs
+
+
+CASES = [("van_der_pol", van_der_pol, np.array([2.0, 0.0]), 12.0),
+         ("spring_chain", spring_chain(300), np.zeros(600), 0.5)]
+
+
+def march(cls, fun, y0, t_end, rtol, instants):
+    """Step ``cls`` to ``t_end``; the dense output at ``instants``, alternately as one array and one by one."""
+    s = cls(fun, 0.0, y0, t_end, rtol=rtol, atol=rtol * 1e-2)
+    cols, k, steps = [], 0, 0
+    while s.status == "running":
+        assert s.step() is None
+        steps += 1
+        inside = [t for t in instants[k:] if t <= s.t]
+        if inside:
+            d = s.dense_output()
+            cols.append(d(np.array(inside)) if steps % 2 else np.column_stack([d(t) for t in inside]))
+            k += len(inside)
+    assert k == len(instants)
+    return np.hstack(cols), steps, s.nfev
+
+
+@pytest.fixture(params=["compiled", "numpy"])
+def path(request, monkeypatch):
+    """Both paths of the passes over the stages: numba's kernels, and numpy's when numba is not installed."""
+    if request.param == "numpy":
+        monkeypatch.setattr(dopri, "_kernels", None)
+    elif dopri.compiled_passes(10 ** 6) is None:
+        pytest.skip("numba not installed")
+    else:
+        monkeypatch.setattr(dopri, "COMPILED_MIN_STATES", 0)        # the small cases too
+    return request.param
+
+
+@pytest.mark.parametrize("ours, theirs", PAIRS, ids=["dopri5", "dop853"])
+@pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
+@pytest.mark.parametrize("rtol", [1e-4, 1e-8])
+def test_same_steps_and_values_as_scipy(ours, theirs, case, rtol, path):
+    _, fun, y0, t_end = case
+    instants = np.linspace(0.0, t_end, 157)[1:]
+    want, steps, nfev = march(theirs, fun, y0, t_end, rtol, instants)
+    got, our_steps, our_nfev = march(ours, fun, y0, t_end, rtol, instants)
+    assert (our_steps, our_nfev) == (steps, nfev)
+    # the same arithmetic in another order: differences of round-off, far below the tolerance (relative to the
+    # range of the states of a kind: the positions are the first half of y, the speeds the second)
+    half = len(y0) // 2
+    for kind in (slice(0, half), slice(half, None)):
+        assert np.max(np.abs(got[kind] - want[kind])) <= 1e-9 * np.ptp(want[kind])
+
+
+@pytest.mark.parametrize("ours, theirs", SAME_METHOD)
+@pytest.mark.parametrize("model", ["chain", "coupled_clutches"])
+def test_through_regmech_same_steps_and_answer_as_the_scipy_solver(ours, theirs, model):
+    # the chain runs the compiled linear form (stages written in place, ``rhs_into``), under DOP853's step cap
+    # at rtol 1e-9; CoupledClutches the friction modes, events located on the dense output
+    if model == "chain":
+        m, t_end, dt, rtol, names = benchmark_chain(300), 0.5, 1e-2, 1e-9, ["J0.w", "J150.w", "J299.w"]
+    else:
+        m, t_end, dt, rtol, names = rm.library.coupled_clutches(), 1.5, 1e-3, 1e-6, ["J1.w", "J2.w", "J3.w", "J4.w"]
+    a = m.simulate(t_end, dt, solver=theirs, rtol=rtol)
+    b = m.simulate(t_end, dt, solver=ours, rtol=rtol)
+    assert b.stats.solver == ours
+    assert (b.stats.steps, b.stats.events, b.stats.rhs_calls) == (a.stats.steps, a.stats.events, a.stats.rhs_calls)
+    assert np.array_equal(a.t, b.t) or np.allclose(a.t, b.t, rtol=0, atol=1e-12)
+    for k in names:
+        assert np.max(np.abs(b[k] - a[k])) <= 1e-8 * np.ptp(a[k]), k
+
+
+def test_dense_output_holds_only_until_the_next_step():
+    s = dopri.Dop853(van_der_pol, 0.0, np.array([2.0, 0.0]), 1.0, rtol=1e-6, atol=1e-8)
+    s.step()
+    d = s.dense_output()
+    mid = 0.5 * (s.t_old + s.t)
+    y = d(mid)
+    assert y.shape == (2,) and d(np.array([mid, s.t])).shape == (2, 2)
+    assert np.allclose(d(s.t), s.y, rtol=1e-12, atol=1e-14)          # the interpolant ends on the step's end
+    assert np.allclose(d(s.t_old), s.y_old, rtol=1e-12, atol=1e-14)
+    s.step()
+    with pytest.raises(RuntimeError, match="after its integrator took another step"):
+        d(mid)
+
+
+def test_caller_start_is_not_written_and_atol_arrays_are_taken():
+    y0 = np.array([2.0, 0.0])
+    s = dopri.Dopri5(van_der_pol, 0.0, y0, 1.0, rtol=1e-6, atol=np.array([1e-8, 1e-6]))
+    while s.status == "running":
+        s.step()
+    assert np.array_equal(y0, [2.0, 0.0]) and s.t == 1.0
+    assert s.atol.shape == (2,) and s.atol[1] == 1e-6
+
+
+def test_a_step_below_the_spacing_of_numbers_fails_with_scipy_message():
+    # a right-hand side that blows up in finite time: the steps shrink until they cannot
+    s = dopri.Dopri5(lambda t, y: y * y, 0.0, np.array([1.0]), 2.0, rtol=1e-8, atol=1e-10)
+    msg = None
+    for _ in range(10_000):
+        msg = s.step()
+        if s.status != "running":
+            break
+    assert s.status == "failed" and "less than spacing" in msg and s.t < 1.001      # y = 1 / (1 - t)
+
+
+@pytest.mark.parametrize("solver", ["dopri5", "dop853"])
+@pytest.mark.parametrize("bad", [float("nan"), math.inf])
+def test_a_signal_that_turns_non_finite_is_a_regmech_error_naming_it(solver, bad):
+    from regmech.components import Torque
+    from test_input_errors import _at, _driven, _late
+    with pytest.raises(rm.SimulationError) as err:
+        _driven(Torque("src", tau=_late(bad))).simulate(1.5, solver=solver)
+    msg = str(err.value)
+    assert "Torque 'src'" in msg and "tau" in msg and "finite" in msg and 0.7 <= _at(msg) < 0.8
+
+
+@pytest.mark.parametrize("solver", ["dopri5", "dop853"])
+def test_the_step_budget_stops_a_run_and_names_the_solver(solver):
+    with pytest.raises(rm.SimulationError) as err:
+        rm.library.first().simulate(1.0, 1e-3, solver=solver, rtol=1e-8, max_steps=20)
+    msg = str(err.value)
+    assert f"solver '{solver}'" in msg and "more than max_steps=20" in msg
+
+
+def test_the_accuracy_contract_holds_with_dop853():
+    m = rm.library.first()
+    ref = m.simulate(1.0, 1e-3, solver="dop853", rtol=1e-12, atol=1e-14)
+    res = m.simulate(1.0, 1e-3, solver="dop853", accuracy=1e-5)
+    assert res.stats.error_estimate <= 1e-5
+    for k in ("inertia1.w", "inertia2.w", "inertia3.w"):
+        assert np.max(np.abs(res[k] - ref[k])) <= 1e-5 * np.ptp(ref[k]), k
+
+
+@pytest.mark.parametrize("solver", ["dop853", "dopri5"])
+def test_a_model_too_stiff_for_max_steps_is_refused_up_front_as_by_scipy_methods(solver):
+    # chain30's spectral radius ~196 1/s: over 1 s at the stability limit (6 / rho for DOP853, 3.3 / rho for RK45)
+    # more than 30 steps, so the shared up-front check refuses before the first step
+    with pytest.raises(rm.SimulationError) as err:
+        benchmark_chain(30).simulate(1.0, 0.01, solver=solver, max_steps=30)
+    msg = str(err.value)
+    assert f"solver '{solver}'" in msg and "stiff for an explicit method" in msg and "'ida'" in msg
