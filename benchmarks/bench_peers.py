@@ -33,7 +33,9 @@ Protocol, per case and rtol (1e-6, 1e-9; atol = rtol * 1e-2, regmech's default):
 regmech's *default call* for a row at rtol r is ``m.simulate(t_end, dt_out,
 accuracy=1e3 r)`` (solver "auto"; at r = 1e-6 that is the plain default call
 with its accuracy 1e-3); its *best solver* is the fastest regmech run (auto,
-ida, scipy:DOP853 and scipy:RK45 at rtol r, scipy:DOP853 at 3 r, expm under ``accuracy=1e3 r`` on the linear models and the native IDA
+ida, scipy:DOP853 and scipy:RK45 at rtol r, scipy:DOP853 at 3 r, regmech's own dop853 at r and 3 r and dopri5 at r
+(``solvers.dopri``: the steps of scipy's DOP853 and RK45, so the same choice of rtol), expm under
+``accuracy=1e3 r`` on the linear models and the native IDA
 path (``native=True``, which ``auto`` takes when numba is installed), also in one run with the peers' own
 settings (``atol_rescale=False``: no repeat of a run whose motion is small for its atol)) whose error is
 within the row's error bound 1e3 r. The fastest peer
@@ -207,6 +209,11 @@ def regmech_tools(case: Case, rtol: float, budget: float) -> list[Tool]:
                 for f in ODE_LOOSER if f <= 3.0 or case.key in ("chain1000", "chain10000")]
     if not rk45_skipped(case, rtol):
         configs.append(("regmech scipy:RK45", {"solver": "scipy:RK45", "rtol": rtol}))
+    # regmech's own Dormand-Prince integrators (``solvers.dopri``), at the rtols of scipy's classes above
+    configs += [("regmech dop853", {"solver": "dop853", "rtol": rtol}),
+                ("regmech dop853 at 3 rtol", {"solver": "dop853", "rtol": 3.0 * rtol})]
+    if not rk45_skipped(case, rtol):
+        configs.append(("regmech dopri5", {"solver": "dopri5", "rtol": rtol}))
     if case.linear:
         configs.append(("regmech expm", {"solver": "expm", "accuracy": acc}))
     # the native IDA path (numba kernels; linear models and friction models whose laws are linear in one signal),
@@ -541,8 +548,8 @@ def ode_row(rows, case: Case, rtol: float, hand_dop: Tool, ode: Tool | None, nam
 
 
 #: the explicit methods' runs that pay the up-front check (``scipy_ivp._refuse_if_stiff``) on a model's first run
-EXPLICIT_LABELS = ("regmech scipy:DOP853", "regmech scipy:RK45") + tuple(
-    f"regmech scipy:DOP853 at {f:g} rtol" for f in ODE_LOOSER)
+EXPLICIT_LABELS = ("regmech scipy:DOP853", "regmech scipy:RK45", "regmech dop853", "regmech dop853 at 3 rtol",
+                   "regmech dopri5") + tuple(f"regmech scipy:DOP853 at {f:g} rtol" for f in ODE_LOOSER)
 
 
 def check_rows(results, checks) -> list[list[str]]:
