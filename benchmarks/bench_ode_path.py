@@ -19,7 +19,8 @@ Models (the hand versions are written out below, a few numpy lines each):
   the chain of ``bench_foundation.py``. 1 s, output every 0.01 s.
 * ``first``: MSL Rotational.Examples.First (a gear: the reduced ODE has 4 states). 1 s.
 
-Solvers and their hand versions: ``scipy:DOP853``, ``scipy:RK45``, ``scipy:Radau`` against
+Solvers and their hand versions: ``scipy:DOP853``, ``scipy:RK45``, ``scipy:Radau`` (and regmech's own
+``dop853`` and ``dopri5``, which take the steps of scipy's DOP853 and RK45) against
 ``scipy.integrate.solve_ivp`` with the same method, rtol, ``atol = rtol 1e-2`` and
 ``t_eval`` = the output grid (Radau gets the sparsity pattern of the Jacobian, as regmech
 gives it); ``rk4`` (``tol=None``, h = dt_out) against a loop of classical RK4 steps;
@@ -47,7 +48,9 @@ import numpy as np  # noqa: E402
 
 T_END, DT_OUT, RTOL = 1.0, 0.01, 1e-6
 AMP, FREQ, C, D, C_GROUND = 10.0, 5.0, 1e4, 1.0, 1e3
-SOLVERS = ("scipy:DOP853", "scipy:RK45", "scipy:Radau", "rk4", "expm")
+SOLVERS = ("scipy:DOP853", "scipy:RK45", "scipy:Radau", "rk4", "expm", "dop853", "dopri5")
+#: regmech's own Dormand-Prince integrators (``solvers.dopri``) and the scipy method they take the steps of
+OWN = {"dop853": "DOP853", "dopri5": "RK45"}
 
 
 # ------------------------------------------------------------------------------- models
@@ -133,8 +136,8 @@ def hand_run(solver, hand, grid):
     """The hand-written version of ``solver``: the states at the grid, (len(grid), size)."""
     from scipy.integrate import solve_ivp
     rhs, u0, pattern, A, force, _, _ = hand
-    if solver.startswith("scipy:"):
-        method = solver.split(":")[1]
+    if solver.startswith("scipy:") or solver in OWN:
+        method = OWN.get(solver) or solver.split(":")[1]
         kw = {"jac_sparsity": pattern} if method in ("Radau", "BDF") else {}
         sol = solve_ivp(rhs, (grid[0], grid[-1]), u0, method=method, t_eval=grid, rtol=RTOL, atol=RTOL * 1e-2, **kw)
         return sol.y.T, sol.nfev
@@ -174,7 +177,7 @@ def hand_run(solver, hand, grid):
 
 
 def regmech_run(solver, model):
-    opts = {"rtol": RTOL} if solver.startswith("scipy:") else {"tol": None}
+    opts = {"rtol": RTOL} if solver.startswith("scipy:") or solver in OWN else {"tol": None}
     return model.simulate(T_END, DT_OUT, solver=solver, **opts)
 
 

@@ -26,7 +26,7 @@ grazing contact's; ``stats.extra["grazing"]`` lists such trips.
 
 How it is estimated, per family of solver:
 
-* **Adaptive solvers** (``ida``, ``scipy:*``, ``convolution`` without ``h``):
+* **Adaptive solvers** (``ida``, ``scipy:*``, ``dopri5``, ``dop853``, ``convolution`` without ``h``):
   a pair of runs at ``rtol = r`` and ``r / TIGHTEN`` (atol scaled alike),
   and the *tighter* one is returned, with ``PAIR_FACTOR`` (2) times the
   scaled maximum difference of the pair as its estimate. Under tolerance

@@ -99,6 +99,18 @@ class OdeProblem:
         return grouped_fd_jacobian(self.rhs, t, u, g, pat)
 
 
+def ode_state_label(c, i) -> str:
+    """Entry ``i`` of the ODE state ``u = [x_K, v_K, z]`` in words: the position or speed of a coordinate
+    (``c.Kx``, ``c.Kv`` index ``c.structure.coord_names``) or a device state."""
+    nx, nv = len(c.Kx), len(c.Kv)
+    names = c.structure.coord_names
+    if i < nx:
+        return f"the position of '{names[c.Kx[i]]}'"
+    if i < nx + nv:
+        return f"the speed of '{names[c.Kv[i - nx]]}'"
+    return f"the state '{c.state_names[i - nx - nv]}'"
+
+
 # ------------------------------------------------------------- Jacobian structure
 _PATTERNS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 

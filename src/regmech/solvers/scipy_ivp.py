@@ -171,6 +171,16 @@ class ScipyStepper(Stepper):
         if cls in dopri.CLASSES.values():
             options["fun_into"] = problem.rhs_into          # stages written in place (``dopri``)
         self.solver = cls(problem.rhs, t0, u0, t_bound, **options)
+        f0 = getattr(self.solver, "f", None)
+        if f0 is not None and not np.all(np.isfinite(f0)):
+            # scipy's explicit methods would try steps forever: their first step estimate is NaN, and NaN < min_step
+            # is False (a right-hand side non-finite at the start was a hang of scipy:RK45 in review, session 17)
+            from .ode_driver import ode_state_label
+            i = int(np.argmax(~np.isfinite(f0)))
+            raise SimulationError(
+                f"{self.label} cannot start at t={t0:.6g} in model '{problem.c.model.name}': the rate of "
+                f"{ode_state_label(problem.c, i)} is NaN or inf there: a law or a signal acting on it overflows. "
+                f"Check that component's parameters and signals, or try 'ida'.")
         # RK, Radau and BDF read ``self.atol`` at every step; LSODA keeps its tolerances in Fortran
         self._retune = scale is not None and scale.scalar and method != "LSODA"
         self.t = self.t_old = float(t0)
@@ -197,8 +207,26 @@ class ScipyStepper(Stepper):
                 f"{type(exc).__name__}: {exc}.{scale_hint(self.problem.c)} Try 'ida' or check the parameters."
             ) from exc
         if self.solver.status == "failed":
+            bad = getattr(self.solver, "nonfinite", None)
+            if bad is None:
+                # scipy's classes shrink the step on a NaN as on a large error until it is too small: look at the
+                # rate where they stopped (the first bad entry), so that the cause is named rather than the step
+                t = self.solver.t
+                for tq in (t, t + 10.0 * abs(np.nextafter(t, np.inf) - t)):      # where it stopped, one least step on
+                    g = np.asarray(self.problem.rhs(tq, self.solver.y))
+                    if not np.all(np.isfinite(g)):
+                        bad = (t, int(np.argmax(~np.isfinite(g))))
+                        break
+            if bad is not None and bad[0] >= self.solver.t:
+                from .ode_driver import ode_state_label
+                raise SimulationError(
+                    f"{self.label} failed at t={self.solver.t:.6g} in model '{self.problem_name}': the rate of "
+                    f"{ode_state_label(self.problem.c, bad[1])} is NaN or inf at t={bad[0]:.6g} for every step "
+                    f"tried: a law or a signal acting on it overflows there. Check that component's parameters and "
+                    f"signals, or try 'ida'.")
             raise SimulationError(f"{self.label} failed at t={self.solver.t:.6g} in model "
-                                  f"'{self.problem_name}': {msg}. Try another rtol or a stiff solver (ida)")
+                                  f"'{self.problem_name}': {str(msg).rstrip('.')}. Try another rtol or a stiff "
+                                  f"solver (ida)")
         self.t_old, self.t, self.u = self.solver.t_old, self.solver.t, self.solver.y
         self._dense = None
         self.nsteps += 1
@@ -345,6 +373,7 @@ def _scipy_solver(method, name=None, cls=None):
 
 def _own_options(name, method, cls) -> OptionSet:
     opts = _scipy_options(method)
+    opts.options["first_step"] = step_option("first step [s] (default: Hairer's estimate, as scipy's)")
     opts.about = (f"regmech's Dormand-Prince integrator '{name}' on the ODE form: the method and step control of "
                   f"scipy's {method}, its stages summed in place (local error control by rtol/atol; see "
                   f"regmech.solvers.dopri)")
