@@ -557,7 +557,9 @@ class ConvolutionStepper(Stepper):
     def stats(self):
         return {"forced": self.forced, **self.counts}
 
-    def amplification(self, J, h):
+    amplification_exact = True
+
+    def amplification(self, J, h, eigenvalues=None):
         if not J.size:
             return None
         M = step_matrix(J, h, "implicit" if self.implicit else "pece")

@@ -255,6 +255,33 @@ class ScipyStepper(Stepper):
     def stats(self):
         return {"lu_decompositions": int(getattr(self.solver, "nlu", 0) or 0) - self._lu0}
 
+    amplification_exact = True        # the explicit methods' R(z); None (no verdict) for the implicit ones
+
+    def amplification(self, J, h, eigenvalues=None):
+        """``max |R(h lambda)|`` over the eigenvalues of J for the explicit Runge-Kutta methods, with ``R(z) = 1 +
+        z b^T (I - z A)^-1 1`` of the method's tableau (``stability_function``); None for the implicit ones."""
+        if self.method not in EXPLICIT_STABILITY or not J.size:
+            return None
+        lam = np.linalg.eigvals(J) if eigenvalues is None else eigenvalues
+        cls = type(self.solver)
+        return float(np.max(np.abs(stability_function(cls.A, cls.B, h * np.asarray(lam)))))
+
+
+def stability_function(A, B, z):
+    """``R(z)`` of the explicit Runge-Kutta method with tableau ``A`` (strictly lower triangular) and weights
+    ``B``: one step's factor on ``y' = lambda y``, ``z = h lambda`` (array). The stages of that equation,
+    ``k_s = lambda (y + h sum_j a_sj k_j)``, in units of ``lambda y``: ``g_s = 1 + z sum_{j<s} a_sj g_j``; then
+    ``R = 1 + z sum_s b_s g_s``."""
+    z = np.asarray(z, dtype=complex)
+    g = []
+    for s in range(len(B)):
+        acc = np.zeros_like(z)
+        for j in range(s):
+            if A[s, j]:
+                acc += A[s, j] * g[j]
+        g.append(1.0 + z * acc)
+    return 1.0 + z * sum(b * gs for b, gs in zip(B, g))
+
 
 #: stability interval of the explicit methods on the negative real axis (h * rho up to about this)
 EXPLICIT_STABILITY = {"RK23": 2.5, "RK45": 3.3, "DOP853": 6.0}

@@ -1,0 +1,68 @@
+"""The roughness verdict of the divergence test is checked against the method's own amplification
+(``ode_driver.RoughVerdict``): a growing oscillation that an explicit method cannot resolve is still stopped, a
+resolved one whose beating grows while a high-order method crosses it in a few steps per period is not."""
+
+import numpy as np
+import pytest
+from scipy.integrate import DOP853, RK23, RK45
+
+import regmech as rm
+from regmech.bench.hard_models import undamped_chain
+from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
+from regmech.signals import Sine
+from regmech.solvers.explicit import ABMStepper, RK4Stepper
+from regmech.solvers.scipy_ivp import stability_function
+
+
+@pytest.mark.parametrize("cls, order, limit", [(RK23, 3, 2.51), (RK45, 5, 3.31), (DOP853, 8, 6.39)])
+def test_stability_function_of_the_tableau(cls, order, limit):
+    # R(z) agrees with exp(z) to the method's order, and its interval on the negative real axis is the known one
+    z = np.array([0.05, -0.03 + 0.04j])
+    assert np.all(np.abs(stability_function(cls.A, cls.B, z) - np.exp(z)) <= 10 * np.abs(z) ** (order + 1))
+    x = np.linspace(-7.0, 0.0, 7001)
+    stable = np.abs(stability_function(cls.A, cls.B, x)) <= 1.0
+    assert abs(x[np.argmax(stable)] - (-limit)) < 0.01
+
+
+def _stiff_pair(theta):
+    """A light spring-damper pair whose mode turns ``theta`` radians per step of 0.01 s, driven slowly."""
+    m = rm.Model("pair")
+    ground = m.add(Fixed("ground"))
+    drive = m.add(Torque("drive", tau=Sine(amplitude=1.0, freq_hz=1.0)))
+    J1, J2 = m.add(Inertia("J1", J=1.0, w0=1.0)), m.add(Inertia("J2", J=1.0))
+    link, soft = m.add(SpringDamper("link", c=(theta / 0.01) ** 2 / 2, d=0.01)), m.add(Spring("soft", c=10.0))
+    m.connect(drive.flange, J1.flange_a)
+    m.connect(J1.flange_b, link.flange_a)
+    m.connect(link.flange_b, J2.flange_a)
+    m.connect(J2.flange_b, soft.flange_a)
+    m.connect(soft.flange_b, ground.flange)
+    return m
+
+
+def test_a_growing_oscillation_beyond_rk4s_limit_is_still_stopped_as_rough():
+    # h omega = 3 > 2.83 (RK4's reach on the imaginary axis): |R| = 1.5 a step, the verdict stands
+    with pytest.raises(rm.SimulationError) as err:
+        _stiff_pair(3.0).simulate(2.0, 0.01, solver="rk4", tol=None)
+    msg = str(err.value)
+    assert "diverged" in msg and "while changing at every step by more than 0.5 times its size" in msg
+
+
+@pytest.mark.parametrize("solver", ["scipy:DOP853", "dop853"])
+@pytest.mark.parametrize("rtol", [3e-4, 1e-4])
+def test_a_resolved_beating_oscillation_is_not_stopped_as_diverged(solver, rtol):
+    # the undamped 4-inertia chain over 100 s: DOP853 at a loose rtol takes 6 to 8 steps per period of its
+    # fastest mode, so every step changes the state by more than half its size, and the beating of the modes
+    # grows it fourfold within ten steps (t = 7.3 s at rtol 1e-4); it was stopped as diverged while the method's
+    # factor on every mode is 1 - 1e-13. The answer's error is that of the rtol over 100 s of undamped motion
+    model, _ = undamped_chain()
+    ref = model.simulate(100.0, 0.1, solver="scipy:DOP853", rtol=1e-11, atol=1e-13)
+    res = model.simulate(100.0, 0.1, solver=solver, rtol=rtol)
+    assert res.stats.extra["roughness"] > 0.5 and res.stats.extra["rough_verdicts_overruled"] >= 1
+    names = ["J0.w", "J1.w", "J2.w", "J3.w"]
+    err = max(np.max(np.abs(res[k] - ref[k])) for k in names) / max(np.ptp(ref[k]) for k in names)
+    assert err < 100 * rtol, err          # measured: 1.6e-2 at 3e-4, 5.5e-3 at 1e-4 (phase drift over 100 s)
+
+
+def test_only_a_methods_own_factor_may_overrule_the_verdict():
+    # abm reports RK4's factor for its start-up steps, a larger region than its own: it never overrules
+    assert RK4Stepper.amplification_exact and not ABMStepper.amplification_exact
