@@ -174,3 +174,61 @@ def linear_rhs_into(u, buf, t, left, ih, fh, g):
     else:
         g[n:2 * n] = 0.0
     g[2 * n:] = out[n_c:]
+
+
+@njit(cache=True, error_model="numpy")
+def linear_jacobian(n, n_c, size, mass, s_ptr, s_idx, s_dat, t_ptr, t_idx, t_dat):
+    """``(indptr, indices, data)`` of ``dg/du`` of the linear form in CSR, with the entries, sums and order of
+    ``OdeForm.jacobian``'s scipy products (a middle row's columns in the reverse of their first appearance, the
+    last rows' in T's order): rows ``[0 I 0]``, then
+    ``-M^-1 S_c^T T_[:n_c]`` (``S_c^T``: ``s_*``, n x n_c; ``T`` on u: ``t_*``), then ``T_[n_c:]``; sums that
+    cancel to exactly zero are left out, as scipy's product leaves them."""
+    rows_t = t_ptr.shape[0] - 1
+    acc = np.zeros(size)
+    mark = np.full(size, -1, np.int64)
+    # the middle rows' entries: at most the sum of the lengths of the T rows each touches
+    cap = 0
+    for i in range(n):
+        for p in range(s_ptr[i], s_ptr[i + 1]):
+            k = s_idx[p]
+            cap += t_ptr[k + 1] - t_ptr[k]
+    nnz = n + cap + (t_ptr[rows_t] - t_ptr[n_c])
+    indptr = np.empty(size + 1, np.int64)
+    indices = np.empty(nnz, np.int64)
+    data = np.empty(nnz)
+    indptr[0] = 0
+    pos = 0
+    for i in range(n):                               # x' = v
+        indices[pos] = n + i
+        data[pos] = 1.0
+        pos += 1
+        indptr[i + 1] = pos
+    cols = np.empty(size, np.int64)
+    for i in range(n):                               # v' = -(1/m_i) sum_k S_c^T[i, k] tau_k
+        inv = 1.0 / mass[i]
+        m = 0
+        for p in range(s_ptr[i + 1] - 1, s_ptr[i] - 1, -1):     # scipy's M^-1 S_c^T leaves each row reversed
+            a = -(inv * s_dat[p])
+            k = s_idx[p]
+            for q in range(t_ptr[k], t_ptr[k + 1]):
+                j = t_idx[q]
+                if mark[j] != i:
+                    mark[j] = i
+                    acc[j] = 0.0
+                    cols[m] = j
+                    m += 1
+                acc[j] += a * t_dat[q]
+        for q in range(m - 1, -1, -1):               # latest column first, as scipy's product emits them
+            j = cols[q]
+            if acc[j] != 0.0:
+                indices[pos] = j
+                data[pos] = acc[j]
+                pos += 1
+        indptr[n + i + 1] = pos
+    for r in range(n_c, rows_t):                     # z' = T_[n_c:] u, in T's order
+        for q in range(t_ptr[r], t_ptr[r + 1]):
+            indices[pos] = t_idx[q]
+            data[pos] = t_dat[q]
+            pos += 1
+        indptr[2 * n + (r - n_c) + 1] = pos
+    return indptr, indices[:pos].copy(), data[:pos].copy()
