@@ -66,3 +66,32 @@ def test_a_resolved_beating_oscillation_is_not_stopped_as_diverged(solver, rtol)
 def test_only_a_methods_own_factor_may_overrule_the_verdict():
     # abm reports RK4's factor for its start-up steps, a larger region than its own: it never overrules
     assert RK4Stepper.amplification_exact and not ABMStepper.amplification_exact
+
+
+def test_a_nonlinear_models_jacobian_is_taken_again_once_the_run_has_moved_on(monkeypatch):
+    # the verdict at t judges the window of the last ROUGH_STEPS steps: a nonlinear model's dg/du older than that
+    # window is not used (fuzz campaign, session 17: a verdict reused a Jacobian from far earlier in the run)
+    from regmech.components import QuadraticSpeedDependentTorque
+    from regmech.solvers import ode_driver as od
+    m = _stiff_pair(0.5)
+    load = m.add(QuadraticSpeedDependentTorque("drag", tau_nominal=-1.0, w_nominal=1.0))
+    m.connect(m["J2"].flange_b, load.flange)
+    c = m.compile()
+    problem, u = od.OdeProblem(c, c.modes0), c.ode_state(c.initial_y(0.0, c.modes0)[0])
+    taken = []
+    monkeypatch.setattr(od, "ode_jacobian", lambda p, t, x: taken.append(t) or od.grouped_fd_jacobian(
+        p.rhs, t, x, p.rhs(t, x), od.ode_jacobian_pattern(p.c)))
+
+    class Step:                        # a stepper's end of step: t, its length and the state
+        amplification_exact = True
+
+        def __init__(self, t, h):
+            self.t, self.t_old, self.u = t, t - h, u
+
+        def amplification(self, J, h, eigenvalues=None):
+            return 0.5                 # stable: the verdict is overruled
+
+    verdict = od.RoughVerdict()
+    for t in (0.10, 0.15, 0.19, 0.35, 0.40):
+        assert verdict.overruled(problem, Step(t, 0.01))
+    assert taken == [0.10, 0.35] and verdict.overruled_count == 5

@@ -1271,13 +1271,13 @@ class RoughVerdict:
     The verdict is overruled when ``q <= AMPLIFICATION_STABLE``; it stands when the stepper knows no ``q`` or
     the model has more than ``ROUGH_CONFIRM_MAX`` states (or its ``amplification`` is a stand-in: ``abm``'s is RK4's,
     whose region is larger). The eigenvalues are kept for the modes they were
-    found in (the linear form's dg/du is constant; a nonlinear one's is taken again after ``ROUGH_STEPS``
-    steps)."""
+    found in (the linear form's dg/du is constant; a nonlinear one's is taken again once the run has moved on
+    by ``ROUGH_STEPS`` steps of the current length)."""
 
     def __init__(self):
         self._key = None
         self._J = self._eigenvalues = None
-        self._steps = 0
+        self._t = -math.inf
         self.overruled_count = 0
 
     def overruled(self, problem, stepper) -> bool:
@@ -1286,14 +1286,17 @@ class RoughVerdict:
         from ..compile.odeform import ode_form
         linear = ode_form(problem.c).linear
         key = np.asarray(problem.modes).tobytes()
-        self._steps += 1
-        if self._J is None or key != self._key or (not linear and self._steps > ROUGH_STEPS):
+        h = stepper.t - stepper.t_old
+        # a nonlinear model's dg/du is taken again once the state has moved on by the test's window of steps
+        # (a verdict upheld or overruled there judged that window), so at most one per ROUGH_STEPS steps
+        stale = not linear and stepper.t - self._t > ROUGH_STEPS * h
+        if self._J is None or key != self._key or stale:
             with np.errstate(all="ignore"):
                 J = ode_jacobian(problem, stepper.t, stepper.u).toarray()
             if not np.all(np.isfinite(J)):
                 return False
-            self._J, self._eigenvalues, self._key, self._steps = J, np.linalg.eigvals(J), key, 0
-        q = stepper.amplification(self._J, stepper.t - stepper.t_old, eigenvalues=self._eigenvalues)
+            self._J, self._eigenvalues, self._key, self._t = J, np.linalg.eigvals(J), key, float(stepper.t)
+        q = stepper.amplification(self._J, h, eigenvalues=self._eigenvalues)
         if q is None or not q <= AMPLIFICATION_STABLE:
             return False
         self.overruled_count += 1
