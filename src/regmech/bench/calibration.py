@@ -57,7 +57,7 @@ LEVELS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
 #: solvers run at every level; the others at 1e-2, 1e-4, 1e-6 (the low-order ones at fewer, ``LOW_ORDER``)
 CORE = ("ida", "scipy:DOP853", "scipy:Radau", "scipy:LSODA", "auto")
 SOLVERS = ("auto", "ida", "expm", "rk4", "abm", "euler", "convolution", "scipy:RK45", "scipy:RK23", "scipy:DOP853",
-           "scipy:Radau", "scipy:BDF", "scipy:LSODA")
+           "scipy:Radau", "scipy:BDF", "scipy:LSODA", "dopri5", "dop853")
 #: the auto choice's time over the fastest solver that met the accuracy: the target
 AUTO_TARGET = 1.5
 AUTO_LEVELS = (1e-2, 1e-4, 1e-6)
