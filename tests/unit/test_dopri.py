@@ -80,8 +80,9 @@ def test_same_steps_and_values_as_scipy(ours, theirs, case, rtol, path):
 
 def assert_same_run(got, want, our_steps, steps, rtol, kinds):
     """The same steps and values to round-off (relative to the range of the states of a kind: positions first,
-    then speeds; ``kinds``: their slices of the rows). The sums run in another order, so a decision round-off can tip (an error norm within an ulp
-    of 1, an event instant) may differ: then a step or two more or fewer, and values within the tolerance."""
+    then speeds; ``kinds``: their slices of the rows). The sums run in another order, so a decision round-off
+    can tip (an error norm within an ulp of 1, an event instant) may differ: then a step or two more or fewer,
+    and values within the tolerance."""
     assert abs(our_steps - steps) <= 2, (our_steps, steps)
     bound = 1e-9 if our_steps == steps else 10 * rtol
     for kind in kinds:

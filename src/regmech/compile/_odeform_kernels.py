@@ -139,9 +139,10 @@ def linear_rhs(u, buf, t, left, ih, fh):
 def linear_rhs_into(u, buf, t, left, ih, fh, g):
     """``g(t, u)`` of the linear form (module docstring) written into ``g`` (an array of u's length that is not
     ``u``); ``(ih, fh)`` from ``layout``. With a signal table, its signals are evaluated at ``t`` (left limits
-    when ``left``) into ``buf`` first; the other slots of ``buf`` hold what Python wrote there. ``out`` (the rows of [tau; dz]), ``work`` (for a
-    general V) and ``acc`` (length n) are scratch. A compact V (one term per row: ``out[v_rows] += v_vals *
-    buf[v_cols]``) when ``v_rows`` is not empty, else the operator ``vi, vf`` (or none)."""
+    when ``left``) into ``buf`` first; the other slots of ``buf`` hold what Python wrote there. ``out`` (the
+    rows of [tau; dz]), ``work`` (for a general V) and ``acc`` (length n) are scratch. A compact V (one term
+    per row: ``out[v_rows] += v_vals * buf[v_cols]``) when ``v_rows`` is not empty, else the operator ``vi, vf``
+    (or none)."""
     n, n_c, rows = ih[H_N], ih[H_NC], ih[H_ROWS]
     ti, si, vi = _ipart(ih, 0), _ipart(ih, 1), _ipart(ih, 2)
     v_rows, v_cols = _ipart(ih, 3), _ipart(ih, 4)

@@ -173,8 +173,8 @@ class OdeForm:
         """``(kernel, ih, fh, signals, kernel_into)`` of ``_odeform_kernels.linear_rhs`` (``layout``) and its
         ``linear_rhs_into``; ``signals``: the kernel evaluates the signals (else Python writes them into
         ``buf``: a signal of another class, an offset not linear in its signals, or a bank of many sines or
-        steps, which one numpy expression evaluates and whose sin need not round as the C library's does). None when a matrix is dense (BLAS adds its products
-        in an order of its own) or numba is not installed."""
+        steps, which one numpy expression evaluates and whose sin need not round as the C library's does).
+        None when a matrix is dense (BLAS adds its products in an order of its own) or numba is not installed."""
         try:
             from . import _odeform_kernels as K
             from ._native_signals import signal_table

@@ -27,8 +27,7 @@ it into another and adds the state into a third, and its error norms make three 
 inertias (20,000 states) that bookkeeping was two thirds of a scipy RK45 run, the right-hand side one third.
 Here one pass per stage writes ``y + h sum a_sj K_j`` into a buffer the integrator keeps, and one pass gives
 the error norm (compiled when numba is installed, ``_dopri_kernels``; else numpy into the same buffers, three
-passes per stage; ``compiled_passes``). On small models the gain is the Python around each
-stage.
+passes per stage; ``compiled_passes``). On small models the gain is the Python around each stage.
 
 The classes follow scipy's ``OdeSolver`` protocol as far as ``scipy_ivp.ScipyStepper`` uses it (``step``,
 ``dense_output``, ``t``, ``t_old``, ``y``, ``status``, a settable ``atol``), so both families share one
@@ -66,6 +65,7 @@ def compiled_passes(n: int):
         except (ImportError, OSError, AttributeError):    # no numba, or one that cannot load (as ida_native)
             _kernels = None
     return _kernels
+
 
 SAFETY = 0.9          # the step factor's safety margin
 MIN_FACTOR = 0.2      # the most a rejected step shrinks at once

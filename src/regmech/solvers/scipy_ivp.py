@@ -392,8 +392,9 @@ def _scipy_solver(method, name=None, cls=None):
         return simulate_ode(model, name, make, t_start, t_end, dt_out, max_events=max_events,
                             chatter_window=chatter_window, chatter_count=chatter_count, max_growth=max_growth)
 
-    simulate_scipy.__doc__ = (f"scipy.integrate.{method} on the ODE form (see regmech.solvers.scipy_ivp)." if cls is None
-                              else f"{cls.__doc__} (see regmech.solvers.dopri and regmech.solvers.scipy_ivp)")
+    simulate_scipy.__doc__ = (f"scipy.integrate.{method} on the ODE form (see regmech.solvers.scipy_ivp)."
+                              if cls is None else
+                              f"{cls.__doc__} (see regmech.solvers.dopri and regmech.solvers.scipy_ivp)")
     simulate_scipy.__name__ = f"simulate_scipy_{method}" if cls is None else f"simulate_{name}"
     return simulate_scipy
 
