@@ -162,8 +162,19 @@ def test_a_right_hand_side_that_is_nan_ends_in_an_error_naming_the_state(solver,
             g[-1] = np.nan
         return g
     c.ode_rhs = broken
-    with pytest.raises(rm.SimulationError) as err:
-        m.simulate(1.0, 1e-2, solver=solver, timeout_s=60)
+    # a loop inside scipy's step never reaches regmech's timeout_s: an alarm makes a hang a failure, not a stall
+    import signal
+
+    def stalled(*_):
+        raise TimeoutError("the run did not end within 60 s (a NaN that loops inside a step)")
+    previous = signal.signal(signal.SIGALRM, stalled)
+    signal.alarm(60)
+    try:
+        with pytest.raises(rm.SimulationError) as err:
+            m.simulate(1.0, 1e-2, solver=solver)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
     msg = str(err.value)
     assert "NaN or inf" in msg and "the speed of 'J4'" in msg, msg
     assert f"t={t_bad:g}" in msg

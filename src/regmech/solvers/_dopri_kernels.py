@@ -1,6 +1,7 @@
 """numba passes of the Dormand-Prince integrators (``solvers.dopri``); imported only when numba is.
 
-* ``stage``: ``out = y + h sum_{j<s} a_j K_j``;
+* ``blend``: ``out = y0 + c (y1 - y0) + h sum_{j<rows} w_j K_j``: a stage's argument (``y1 = y0``, ``c = 0``:
+  ``y0 + 0 + h sum``, the same number as ``y0 + h sum``) and a dense output's value;
 * ``rms_error``: ``dopri5``'s error norm, ``sqrt(mean((h sum_j e_j K_j / scale)^2))`` with
   ``scale = atol + rtol max(|y|, |y_new|)``, no array made;
 * ``blended_sums``: ``dop853``'s two sums of squares ``sum (sum_j e5_j K_j / scale)^2`` and the same of ``e3``.
@@ -37,20 +38,6 @@ def _combine(K, a, rows, i0, m, acc):
         kj = K[j, i0:i0 + m]
         for q in range(m):
             acc[q] += aj * kj[q]
-
-
-@njit(cache=True, error_model="numpy")
-def stage(y, K, a, s, h, out):
-    """``out[i] = y[i] + h * sum_{j<s} a[j] K[j, i]`` (s >= 1)."""
-    n = y.shape[0]
-    acc = np.empty(BLOCK)
-    for i0 in range(0, n, BLOCK):
-        m = min(BLOCK, n - i0)
-        _combine(K, a, s, i0, m, acc)
-        ys = y[i0:i0 + m]
-        os = out[i0:i0 + m]
-        for q in range(m):
-            os[q] = ys[q] + h * acc[q]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -115,7 +102,7 @@ def blended_sums(K, e5, e3, rows, y, y_new, atol, rtol):
 
 @njit(cache=True, error_model="numpy")
 def blend(y0, y1, c, K, w, rows, h, out):
-    """``out[i] = y0[i] + c (y1[i] - y0[i]) + h sum_{j<rows} w[j] K[j, i]`` (a dense output's value)."""
+    """``out[i] = y0[i] + c (y1[i] - y0[i]) + h sum_{j<rows} w[j] K[j, i]`` (module docstring)."""
     n = y0.shape[0]
     acc = np.empty(BLOCK)
     for i0 in range(0, n, BLOCK):

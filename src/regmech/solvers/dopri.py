@@ -140,7 +140,6 @@ class DormandPrince:
         self.nlu = 0
         self.status = "running"
         self.steps_begun = 0             # attempts started: a dense output holds until the next one
-        self.nonfinite = None            # (t, state index) of the last NaN or inf in a stage, if any
         self._k = compiled_passes(self.n)
         self.f = self._eval(self.t, self.y)
         S = self.n_stages
@@ -156,8 +155,8 @@ class DormandPrince:
             self.h_abs = initial_step(self._eval, self.t, self.y, self.f, self.t_bound, self.max_step,
                                       self.error_estimator_order, self.rtol, self._atol)
             if not math.isfinite(self.h_abs) and self.n:
-                # a non-finite f at the start makes the estimate NaN: try the longest step, whose attempts then
-                # shrink to the spacing of numbers and fail, naming the state (``_step_impl``)
+                # a non-finite f at the start makes the estimate NaN, and NaN < min_step never ends the loop of
+                # ``_step_impl``: try the longest step, whose attempts then shrink to the spacing of numbers and fail
                 self.h_abs = min(self.max_step, abs(self.t_bound - self.t))
         else:
             self.h_abs = float(first_step)
@@ -189,7 +188,7 @@ class DormandPrince:
 
     def _stage(self, y, coef, s, h, out):
         if self._k is not None:
-            self._k.stage(y, self.K, coef, s, h, out)
+            self._k.blend(y, y, 0.0, self.K, coef, s, h, out)
         else:
             _stage_numpy(y, self.K, coef, s, h, out, self._sum)
 
@@ -206,13 +205,8 @@ class DormandPrince:
             self.steps_begun += 1
             self.status = "finished"
             return None
-        ok = self._step_impl()
-        if not ok:
-            self.status = "failed"
-            if self.nonfinite is not None and self.nonfinite[0] >= self.t:
-                t_bad, i = self.nonfinite
-                return (f"the right-hand side is NaN or inf (entry {i} of the ODE state's rate) at t={t_bad:.6g} "
-                        f"for every step tried, down to the spacing of numbers")
+        if not self._step_impl():
+            self.status = "failed"          # the caller names a non-finite rate (``scipy_ivp.ScipyStepper``)
             return self.TOO_SMALL_STEP
         if self.direction * (self.t - self.t_bound) >= 0:
             self.status = "finished"
@@ -243,10 +237,8 @@ class DormandPrince:
             K[S] = f_new
             norm = self._error_norm(y, y_new, h)
             if not math.isfinite(norm):
-                # NaN or inf in a stage (scipy's NaN < 1 is False too): shrink as for a large error, which recovers
-                # from an overflow of a too long trial step; one that persists down to the spacing of numbers is
-                # reported with the state and time it was found at (``step``)
-                self.nonfinite = self._first_nonfinite(t, h)
+                # NaN or inf in a stage: shrink as for a large error (as scipy), which recovers from an overflow of
+                # a too long trial step; one that persists fails at the spacing of numbers
                 norm = math.inf
             if norm < 1.0:
                 factor = MAX_FACTOR if norm == 0.0 else min(MAX_FACTOR, SAFETY * norm ** self.error_exponent)
@@ -264,16 +256,6 @@ class DormandPrince:
         self.h_abs = h_abs
         self.f = f_new
         return True
-
-    def _first_nonfinite(self, t, h):
-        """``(t_s, i)``: the first stage ``s`` with a non-finite entry ``i`` and its time (the step's end for the
-        last), or the step's start and the state's first non-finite entry when only the error norm overflowed."""
-        for s in range(self.n_stages + 1):
-            bad = ~np.isfinite(self.K[s])
-            if bad.any():
-                c = self.C[s] if s < self.n_stages else 1.0
-                return t + c * h, int(np.argmax(bad))
-        return t, 0
 
     def _check_stepped(self):
         if self.t_old is None:
@@ -332,6 +314,9 @@ class Dop853(DormandPrince):
     A_EXTRA = _ScipyDOP853.A_EXTRA
     C_EXTRA = _ScipyDOP853.C_EXTRA
 
+    #: the rows of A of the three extra stages, each to its stage (13, 14, 15)
+    _A_EXTRA_ROWS = [np.ascontiguousarray(a[:_ScipyDOP853.n_stages + 1 + i]) for i, a in enumerate(A_EXTRA)]
+
     def K_rows(self) -> int:
         # the 13 stages of a step and the three more of its dense output (rows 13-15)
         return self.n_stages + 1 + len(self.C_EXTRA)
@@ -365,9 +350,9 @@ class Dop853(DormandPrince):
         self._check_stepped()
         K, h, t0, y0 = self.K, self.h_previous, self.t_old, self.y_old
         S1 = self.n_stages + 1
-        for i, (a, c) in enumerate(zip(self.A_EXTRA, self.C_EXTRA) if h else ()):
+        for i, (a, c) in enumerate(zip(self._A_EXTRA_ROWS, self.C_EXTRA) if h else ()):
             s = S1 + i
-            self._stage(y0, np.ascontiguousarray(a[:s]), s, h, self._work)
+            self._stage(y0, a, s, h, self._work)
             self._eval_into(t0 + c * h, self._work, s)
         D, last = self.D, self.n_stages
 

@@ -102,16 +102,22 @@ class OdeProblem:
         return grouped_fd_jacobian(self.rhs, t, u, g, pat)
 
 
-def ode_state_label(c, i) -> str:
-    """Entry ``i`` of the ODE state ``u = [x_K, v_K, z]`` in words: the position or speed of a coordinate
-    (``c.Kx``, ``c.Kv`` index ``c.structure.coord_names``) or a device state."""
+def ode_state_entry(c, i) -> tuple[str, str]:
+    """Entry ``i`` of the ODE state ``u = [x_K, v_K, z]``: ``(kind, name)``, kind "position" or "speed" of a
+    coordinate (``c.Kx``, ``c.Kv`` index ``c.structure.coord_names``) or "state" of a device."""
     nx, nv = len(c.Kx), len(c.Kv)
     names = c.structure.coord_names
     if i < nx:
-        return f"the position of '{names[c.Kx[i]]}'"
+        return "position", names[c.Kx[i]]
     if i < nx + nv:
-        return f"the speed of '{names[c.Kv[i - nx]]}'"
-    return f"the state '{c.state_names[i - nx - nv]}'"
+        return "speed", names[c.Kv[i - nx]]
+    return "state", c.state_names[i - nx - nv]
+
+
+def ode_state_label(c, i) -> str:
+    """Entry ``i`` of the ODE state in words (``ode_state_entry``): "the speed of 'J1'"."""
+    kind, name = ode_state_entry(c, i)
+    return f"the state '{name}'" if kind == "state" else f"the {kind} of '{name}'"
 
 
 # ------------------------------------------------------------- Jacobian structure
@@ -563,9 +569,8 @@ class _Sink:
                 u = np.concatenate([y[c._sx], y[c._sv], y[c._sz]])
                 g = form.rhs(t, u, left)
                 if not np.all(np.isfinite(g)):
-                    bad = int(np.argmax(~np.isfinite(g)))
-                    what = (f"'{c.structure.coord_names[bad - n]}'" if n <= bad < 2 * n else
-                            f"'{c.state_names[bad - 2 * n]}'" if bad >= 2 * n else f"'{c.structure.coord_names[bad]}'")
+                    # the linear form has no constraints: u = [x, v, z] over every coordinate (Kx = Kv = all)
+                    what = f"'{ode_state_entry(c, int(np.argmax(~np.isfinite(g))))[1]}'"
                     raise SimulationError(
                         f"the acceleration of {what} became non-finite (NaN/inf) at t={t:.6g} in model "
                         f"'{c.model.name}' while the states stayed finite: a law or a signal acting on it overflows "
@@ -1268,11 +1273,11 @@ class RoughVerdict:
     a few steps per period is rough too, and its beating grows (the undamped chain ``long_horizon`` of the hard
     cases: DOP853 at rtol 1e-4 took 6 steps per period of its fastest mode, h = 0.087 s, and was stopped as
     diverged at t = 7.3 s while its state grew from 0.27 to 1.09 as the reference's does; there q = 1 - 1e-13).
-    The verdict is overruled when ``q <= AMPLIFICATION_STABLE``; it stands when the stepper knows no ``q`` or
-    the model has more than ``ROUGH_CONFIRM_MAX`` states (or its ``amplification`` is a stand-in: ``abm``'s is RK4's,
-    whose region is larger). The eigenvalues are kept for the modes they were
-    found in (the linear form's dg/du is constant; a nonlinear one's is taken again once the run has moved on
-    by ``ROUGH_STEPS`` steps of the current length)."""
+    The verdict is overruled when ``q <= AMPLIFICATION_STABLE``; it stands when the stepper knows no ``q`` of
+    its own (``amplification_exact``: abm's is RK4's, whose region is larger; the implicit scipy methods give
+    none) or the model has more than ``ROUGH_CONFIRM_MAX`` states. The eigenvalues are kept for the modes they
+    were found in (the linear form's dg/du is constant; a nonlinear one's is taken again once the run has moved
+    on by ``ROUGH_STEPS`` steps of the current length)."""
 
     def __init__(self):
         self._key = None

@@ -156,6 +156,8 @@ class ScipyStepper(Stepper):
 
     def __init__(self, method, problem, t0, u0, t_bound, budget=None, scale=None, cls=None, **options):
         self.label = f"scipy {method}" if cls is None else f"solver '{cls.solver_name}'"
+        # the explicit methods' factor is their R(z) (``amplification``); the implicit ones give none
+        self.amplification_exact = method in EXPLICIT_STABILITY
         cls = METHODS[method] if cls is None else cls
         if method in ("Radau", "BDF"):
             options["jac_sparsity"] = ode_jacobian_pattern(problem.c)
@@ -172,15 +174,10 @@ class ScipyStepper(Stepper):
             options["fun_into"] = problem.rhs_into          # stages written in place (``dopri``)
         self.solver = cls(problem.rhs, t0, u0, t_bound, **options)
         f0 = getattr(self.solver, "f", None)
-        if f0 is not None and not np.all(np.isfinite(f0)):
+        if f0 is not None:
             # scipy's explicit methods would try steps forever: their first step estimate is NaN, and NaN < min_step
             # is False (a right-hand side non-finite at the start was a hang of scipy:RK45 in review, session 17)
-            from .ode_driver import ode_state_label
-            i = int(np.argmax(~np.isfinite(f0)))
-            raise SimulationError(
-                f"{self.label} cannot start at t={t0:.6g} in model '{problem.c.model.name}': the rate of "
-                f"{ode_state_label(problem.c, i)} is NaN or inf there: a law or a signal acting on it overflows. "
-                f"Check that component's parameters and signals, or try 'ida'.")
+            self._refuse_nonfinite_rate(f0, t0, "cannot start")
         # RK, Radau and BDF read ``self.atol`` at every step; LSODA keeps its tolerances in Fortran
         self._retune = scale is not None and scale.scalar and method != "LSODA"
         self.t = self.t_old = float(t0)
@@ -189,6 +186,16 @@ class ScipyStepper(Stepper):
         self.nrejected = 0
         self._dense = None
         self._lu0 = getattr(self.solver, "nlu", 0)
+
+    def _refuse_nonfinite_rate(self, g, t, what):
+        """A ``SimulationError`` naming the first state whose rate ``g`` (at time t) is NaN or inf, if any."""
+        if np.all(np.isfinite(g)):
+            return
+        from .ode_driver import ode_state_label
+        raise SimulationError(
+            f"{self.label} {what} at t={t:.6g} in model '{self.problem.c.model.name}': the rate of "
+            f"{ode_state_label(self.problem.c, int(np.argmax(~np.isfinite(g))))} is NaN or inf there: a law or a "
+            f"signal acting on it overflows. Check that component's parameters and signals, or try 'ida'.")
 
     @property
     def njev(self):
@@ -207,23 +214,11 @@ class ScipyStepper(Stepper):
                 f"{type(exc).__name__}: {exc}.{scale_hint(self.problem.c)} Try 'ida' or check the parameters."
             ) from exc
         if self.solver.status == "failed":
-            bad = getattr(self.solver, "nonfinite", None)
-            if bad is None:
-                # scipy's classes shrink the step on a NaN as on a large error until it is too small: look at the
-                # rate where they stopped (the first bad entry), so that the cause is named rather than the step
-                t = self.solver.t
-                for tq in (t, t + 10.0 * abs(np.nextafter(t, np.inf) - t)):      # where it stopped, one least step on
-                    g = np.asarray(self.problem.rhs(tq, self.solver.y))
-                    if not np.all(np.isfinite(g)):
-                        bad = (t, int(np.argmax(~np.isfinite(g))))
-                        break
-            if bad is not None and bad[0] >= self.solver.t:
-                from .ode_driver import ode_state_label
-                raise SimulationError(
-                    f"{self.label} failed at t={self.solver.t:.6g} in model '{self.problem_name}': the rate of "
-                    f"{ode_state_label(self.problem.c, bad[1])} is NaN or inf at t={bad[0]:.6g} for every step "
-                    f"tried: a law or a signal acting on it overflows there. Check that component's parameters and "
-                    f"signals, or try 'ida'.")
+            # the explicit classes shrink the step on a NaN as on a large error until it is too small: look at the
+            # rate where they stopped, and one least step on, so that the cause is named rather than the step
+            t, y = self.solver.t, self.solver.y
+            for tq in (t, t + 10.0 * abs(np.nextafter(t, np.inf) - t)):
+                self._refuse_nonfinite_rate(np.asarray(self.problem.rhs(tq, y)), t, "failed")
             raise SimulationError(f"{self.label} failed at t={self.solver.t:.6g} in model "
                                   f"'{self.problem_name}': {str(msg).rstrip('.')}. Try another rtol or a stiff "
                                   f"solver (ida)")
@@ -255,7 +250,6 @@ class ScipyStepper(Stepper):
     def stats(self):
         return {"lu_decompositions": int(getattr(self.solver, "nlu", 0) or 0) - self._lu0}
 
-    amplification_exact = True        # the explicit methods' R(z); None (no verdict) for the implicit ones
 
     def amplification(self, J, h, eigenvalues=None):
         """``max |R(h lambda)|`` over the eigenvalues of J for the explicit Runge-Kutta methods, with ``R(z) = 1 +
