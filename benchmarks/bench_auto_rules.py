@@ -109,11 +109,198 @@ What the table shows (the rules' text: `regmech.solvers.auto`, rule 3):
 """
 
 
-def one(m, column, acc, dt, timeout):
+# ----------------------------------------------------------------------------- rule E: the model families
+def family_models():
+    """``(name, build, span)``: the linear, friction-free families rule E is weighed on (``regmech.solvers.auto``):
+    the benchmark chains (lightly damped), the same with heavy dampers (decays on top of the spectrum), with one
+    link 1,000 times stiffer than the rest (a stiff mode the drive does not excite), random trees of inertias
+    0.1-10 kg m^2 and spring-dampers 1e3-1e5 N m/rad, 0.1-10 N m s/rad (lightly damped modes up to 200 Hz, a sine
+    drive of 1-20 Hz), the same with dampers 100 times heavier, and trains of 10 t cars (couplings 1e6 N/m, 1e3 N
+    s/m, a 0.5 Hz pull, 10 s)."""
+    from regmech.bench.hard_models import benchmark_chain
+    out = [(f"chain{n}", (lambda n=n: benchmark_chain(n)), 1.0) for n in (30, 100, 300, 1000)]
+    out += [("chain100_d100", lambda: benchmark_chain(100, d=100.0), 1.0),
+            ("chain100_d3000", lambda: benchmark_chain(100, d=3000.0), 1.0),
+            ("chain100_stiff1e7", lambda: stiff_link_chain(100, 1e7), 1.0),
+            ("chain300_stiff1e6", lambda: stiff_link_chain(300, 1e6), 1.0)]
+    out += [(f"tree{n}", (lambda n=n, s=s: random_tree(n, s)), 1.0) for n, s in ((50, 1), (200, 2), (1000, 3))]
+    out += [("tree200_heavy_d", lambda: random_tree(200, 4, d_scale=100.0), 1.0)]
+    out += [(f"train{n}", (lambda n=n: train(n)), 10.0) for n in (20, 100, 500)]
+    return out
+
+
+def stiff_link_chain(n, c_stiff):
+    from regmech.bench.hard_models import benchmark_chain
+    m = benchmark_chain(n)
+    m.components[f"sd{n // 2}"].c = c_stiff
+    return m
+
+
+def random_tree(n, seed, d_scale=1.0):
+    import numpy as np
+    import regmech as rm
+    from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
+    from regmech.signals import Sine
+    rng = np.random.default_rng(seed)
+    m = rm.Model(f"tree{n}_{seed}")
+    fixed = m.add(Fixed("fixed"))
+    J = [m.add(Inertia(f"J{i}", J=float(10 ** rng.uniform(-1, 1)), phi0=0.0, w0=0.0)) for i in range(n)]
+    drive = m.add(Torque("drive", tau=Sine(amplitude=10.0, freq_hz=float(rng.uniform(1, 20)))))
+    m.connect(drive.flange, J[0].flange_a)
+    for i in range(1, n):
+        parent = int(rng.integers(0, i))
+        sd = m.add(SpringDamper(f"sd{i}", c=float(10 ** rng.uniform(3, 5)), d=d_scale * float(10 ** rng.uniform(-1, 1))))
+        m.connect(J[parent].flange_b, sd.flange_a)
+        m.connect(sd.flange_b, J[i].flange_a)
+    end = m.add(Spring("ground", c=1e3))
+    m.connect(J[-1].flange_b, end.flange_a)
+    m.connect(end.flange_b, fixed.flange)
+    return m
+
+
+def train(n, c=1e6, d=1e3, mass=1e4):
+    import regmech as rm
+    from regmech.components import Force, Mass, SpringDamper
+    from regmech.signals import Sine
+    m = rm.Model(f"train{n}")
+    cars = [m.add(Mass(f"car{i}", m=mass, s0=0.0, v0=0.0)) for i in range(n)]
+    pull = m.add(Force("loco", f=Sine(amplitude=1e5, freq_hz=0.5)))
+    m.connect(pull.flange, cars[0].flange_a)
+    for i in range(n - 1):
+        cp = m.add(SpringDamper(f"cp{i}", c=c, d=d, domain="translational"))
+        m.connect(cars[i].flange_b, cp.flange_a)
+        m.connect(cp.flange_b, cars[i + 1].flange_a)
+    return m
+
+
+FAMILY_SOLVERS = ["auto", "dop853", "ida native"]
+FAMILY_NOTES = """
+What the table shows (rule E: `regmech.solvers.auto`, session 18):
+
+* `auto` runs `dop853` first on a linear model of at least 150 ODE states without friction devices whose
+  damping bound is at most half its oscillation bound (`ode_driver.spectral_split`) and whose pair of runs fits
+  DOP853's step budget; `ida`, then `expm`, if it refuses. The chains and trees pass the test, the damped chains
+  (`chain100_d100`, `chain100_d3000`: damping 2 and 60 times the oscillation) and `tree200_heavy_d` (9 times)
+  do not, nor the chain of 30 inertias (60 states) or the tree of 50 (100 states).
+* Before rule E, measured in this session by the same models and cells (the code before it, `auto` with ida
+  native where numba is there; medians of 3, wall ms, the machine as below), `auto` took:
+
+  | model | states | dt_out | accuracy | auto before rule E | its choice |
+  |---|---|---|---|---|---|
+  | chain30 | 60 | 0.01 | 0.001 | 14 | expm |
+  | chain30 | 60 | 0.01 | 1e-06 | 19 | ida |
+  | chain30 | 60 | 0.001 | 0.001 | 5 | ida |
+  | chain30 | 60 | 0.001 | 1e-06 | 22 | ida |
+  | chain100 | 200 | 0.01 | 0.001 | 11 | ida |
+  | chain100 | 200 | 0.01 | 1e-06 | 52 | ida |
+  | chain100 | 200 | 0.001 | 0.001 | 29 | ida |
+  | chain100 | 200 | 0.001 | 1e-06 | 65 | ida |
+  | chain300 | 600 | 0.01 | 0.001 | 43 | expm |
+  | chain300 | 600 | 0.01 | 1e-06 | 151 | ida |
+  | chain300 | 600 | 0.001 | 0.001 | 61 | ida |
+  | chain300 | 600 | 0.001 | 1e-06 | 174 | ida |
+  | chain1000 | 2000 | 0.01 | 0.001 | 97 | expm |
+  | chain1000 | 2000 | 0.01 | 1e-06 | 236 | expm |
+  | chain1000 | 2000 | 0.001 | 0.001 | 222 | expm |
+  | chain1000 | 2000 | 0.001 | 1e-06 | 172 | expm |
+  | chain100_d100 | 200 | 0.01 | 0.001 | 5 | ida |
+  | chain100_d100 | 200 | 0.01 | 1e-06 | 26 | ida |
+  | chain100_d100 | 200 | 0.001 | 0.001 | 9 | ida |
+  | chain100_d100 | 200 | 0.001 | 1e-06 | 27 | ida |
+  | chain100_d3000 | 200 | 0.01 | 0.001 | 6 | ida |
+  | chain100_d3000 | 200 | 0.01 | 1e-06 | 16 | ida |
+  | chain100_d3000 | 200 | 0.001 | 0.001 | 8 | ida |
+  | chain100_d3000 | 200 | 0.001 | 1e-06 | 19 | ida |
+  | chain100_stiff1e7 | 200 | 0.01 | 0.001 | 145 | ida |
+  | chain100_stiff1e7 | 200 | 0.01 | 1e-06 | 176 | ida |
+  | chain100_stiff1e7 | 200 | 0.001 | 0.001 | 151 | ida |
+  | chain100_stiff1e7 | 200 | 0.001 | 1e-06 | 227 | ida |
+  | chain300_stiff1e6 | 600 | 0.01 | 0.001 | 44 | expm |
+  | chain300_stiff1e6 | 600 | 0.01 | 1e-06 | 145 | ida |
+  | chain300_stiff1e6 | 600 | 0.001 | 0.001 | 111 | expm |
+  | chain300_stiff1e6 | 600 | 0.001 | 1e-06 | 114 | expm |
+  | tree50 | 100 | 0.01 | 0.001 | 39 | ida |
+  | tree50 | 100 | 0.01 | 1e-06 | 142 | ida |
+  | tree50 | 100 | 0.001 | 0.001 | 42 | ida |
+  | tree50 | 100 | 0.001 | 1e-06 | 143 | ida |
+  | tree200 | 400 | 0.01 | 0.001 | 2566 | ida |
+  | tree200 | 400 | 0.01 | 1e-06 | 3982 | ida |
+  | tree200 | 400 | 0.001 | 0.001 | 165 | expm |
+  | tree200 | 400 | 0.001 | 1e-06 | 4053 | ida |
+  | tree1000 | 2000 | 0.01 | 0.001 | 16917 | expm |
+  | tree1000 | 2000 | 0.01 | 1e-06 | 17097 | expm |
+  | tree1000 | 2000 | 0.001 | 0.001 | 910 | expm |
+  | tree1000 | 2000 | 0.001 | 1e-06 | 1496 | expm |
+  | tree200_heavy_d | 400 | 0.01 | 0.001 | 283 | ida |
+  | tree200_heavy_d | 400 | 0.01 | 1e-06 | 349 | ida |
+  | tree200_heavy_d | 400 | 0.001 | 0.001 | 533 | expm |
+  | tree200_heavy_d | 400 | 0.001 | 1e-06 | 503 | ida |
+  | train20 | 40 | 0.01 | 0.001 | 4 | ida |
+  | train20 | 40 | 0.01 | 1e-06 | 9 | ida |
+  | train20 | 40 | 0.001 | 0.001 | 9 | ida |
+  | train20 | 40 | 0.001 | 1e-06 | 17 | ida |
+  | train100 | 200 | 0.01 | 0.001 | 13 | ida |
+  | train100 | 200 | 0.01 | 1e-06 | 85 | ida |
+  | train100 | 200 | 0.001 | 0.001 | 56 | ida |
+  | train100 | 200 | 0.001 | 1e-06 | 86 | ida |
+  | train500 | 1000 | 0.01 | 0.001 | 112 | ida |
+  | train500 | 1000 | 0.01 | 1e-06 | 161 | ida |
+  | train500 | 1000 | 0.001 | 0.001 | 515 | ida |
+  | train500 | 1000 | 0.001 | 1e-06 | 1002 | ida |
+
+  So the trees of 200 and 1000 inertias went to ida or expm at 165 ms to 17 s where dop853 takes 50-470 ms
+  (ida needed 6,000-20,000 steps: lightly damped modes up to 200 Hz, all excited), the chains of 300 and 1000
+  inertias to expm or ida at 42-236 ms against dop853's 21-86 ms.
+* Where rule E is wrong: the chains with one link 1,000 times stiffer than the rest (`chain100_stiff1e7`,
+  `chain300_stiff1e6`: a mode the 5 Hz drive hardly excites, which ida's steps cross and dop853's cap must
+  resolve) at accuracy 1e-6 and dt_out 1e-3: dop853 up to 1.9x auto's former choice; and trains over 10 s at
+  dt_out 1e-3 (10,000 output instants a run) where ida's output rows are cheaper.
+"""
+
+
+def families(a):
+    """Rule E's table: every family model, dt_out 1e-2 and 1e-3, accuracy 1e-3 and 1e-6."""
+    rows, load0 = [], os.getloadavg()
+    for name, build, span in family_models():
+        m = build()
+        m.compile()
+        for dt in DT_OUTS:
+            for acc in (1e-3, 1e-6):
+                times = {s: [] for s in FAMILY_SOLVERS}
+                picked = set()
+                for _ in range(a.repeats):
+                    for s in FAMILY_SOLVERS:
+                        if times[s] and times[s][-1] is None:
+                            continue
+                        t, used, _ = one(m, s, acc, dt, a.timeout, span)
+                        times[s].append(t)
+                        if s == "auto":
+                            picked.add(used)
+                med = {s: (statistics.median(v) if v and all(x is not None for x in v) else None)
+                       for s, v in times.items()}
+                best = min((v for s, v in med.items() if s != "auto" and v is not None), default=None)
+                ratio = med["auto"] / best if med["auto"] is not None and best else None
+                rows.append((name, int(m.compile().ode_size()), span, dt, acc, med, "/".join(sorted(picked)), ratio))
+                print(rows[-1], flush=True)
+    load1 = os.getloadavg()
+    fmt = lambda v: "-" if v is None else f"{v * 1e3:.0f}"  # noqa: E731
+    lines = ["## Rule E: the explicit method on large linear models", "",
+             "`python benchmarks/bench_auto_rules.py --families` (models: `family_models`). Every solver with "
+             f"`accuracy=` (all contract runs counted), interleaved, medians of {a.repeats}, wall ms; '-': refused or "
+             f"over {a.timeout:g} s. Load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end (2 cores).",
+             "", "| model | states | span s | dt_out | accuracy | auto | dop853 | ida native | auto chose | auto / fastest |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for name, states, span, dt, acc, med, picked, ratio in rows:
+        lines.append(f"| {name} | {states} | {span:g} | {dt:g} | {acc:g} | {fmt(med['auto'])} | {fmt(med['dop853'])} | "
+                     f"{fmt(med['ida native'])} | {picked} | {'-' if ratio is None else f'{ratio:.2f}'} |")
+    return lines
+
+
+def one(m, column, acc, dt, timeout, span=1.0):
     solver, options = RUN.get(column, (column, {}))
     t0 = time.perf_counter()
     try:
-        r = m.simulate(1.0, dt, solver=solver, accuracy=acc, timeout_s=timeout, **options)
+        r = m.simulate(span, dt, solver=solver, accuracy=acc, timeout_s=timeout, **options)
     except Exception as exc:        # noqa: BLE001 - a refusal or a timeout is a table entry
         return None, type(exc).__name__, None
     dt_run = time.perf_counter() - t0
@@ -127,7 +314,17 @@ def main(argv=None):
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--timeout", type=float, default=30.0)
     p.add_argument("--out", default=str(Path(__file__).parent / "results" / "auto_rules.md"))
+    p.add_argument("--families", action="store_true",
+                   help="rule E's model families instead (appended to --out as its own section)")
     a = p.parse_args(argv)
+    if a.families:
+        lines = families(a)
+        out = Path(a.out)
+        text = out.read_text() if out.exists() else ""
+        head = text.split("\n## Rule E:")[0].rstrip("\n")
+        out.write_text(head + "\n\n" + "\n".join(lines) + "\n" + FAMILY_NOTES)
+        print("->", out)
+        return
     rows = []
     load0 = os.getloadavg()
     for n in a.sizes:
@@ -166,7 +363,9 @@ def main(argv=None):
         lines.append(f"| {n} | {dt:g} | {acc:g} | {fmt(med['auto'])} | {fmt(med['ida'])} | {fmt(med['ida native'])} | "
                      f"{fmt(med['expm'])} | "
                      f"{fmt(med['scipy:DOP853'])} | {picked} | {'-' if ratio is None else f'{ratio:.2f}'} |")
-    Path(a.out).write_text("\n".join(lines) + "\n" + NOTES)
+    old = Path(a.out).read_text() if Path(a.out).exists() else ""
+    kept = ("\n## Rule E:" + old.split("\n## Rule E:", 1)[1]) if "\n## Rule E:" in old else ""     # --families' section
+    Path(a.out).write_text("\n".join(lines) + "\n" + NOTES + kept)
     print("->", a.out)
 
 

@@ -144,6 +144,7 @@ def test_a_large_linear_model_goes_to_expm_only_where_its_steps_repay_them():
     # (measured with ida's Python callbacks: that path's weight; the native one, below)
     tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
     tr.ida_gain = 1.0
+    tr.spectrum = None          # rule 3 alone (rule E takes this chain first: tests below)
     assert tr.modes is None and tr.linear          # too large for the modal traits
     assert tr.expm_steps_at(1e-6) > auto.large_model_bound(tr, 1e-6)
     first, reason = auto.choose(tr, 1e-6)[0]
@@ -159,6 +160,7 @@ def test_rule_3_weighs_the_size_of_the_model():
     # (ida's Python callbacks: that path's weight)
     tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
     tr.ida_gain = 1.0
+    tr.spectrum = None          # rule 3 alone
     big = auto.Traits(**{**{f: getattr(tr, f) for f in ("linear", "nonlinear", "floor", "spread", "modes_of", "span",
                                                        "expm_steps", "friction", "f_bound", "f_forcing")},
                          "states": 10 * tr.states})
@@ -198,11 +200,13 @@ def test_rule_3_with_native_ida_weighs_its_cheap_steps():
     expm in every cell at 1000 inertias."""
     tr = auto.traits(sine_driven_chain(100), 0.0, 1.0, 1e-2)
     tr.ida_gain = auto.native_gain(tr.states)
+    tr.spectrum = None          # rule 3 alone
     assert tr.modes is None
     for acc in (1e-2, 1e-3, 1e-4, 1e-6):
         assert auto.choose(tr, acc)[0][0] == "ida"
     big = auto.traits(sine_driven_chain(1000), 0.0, 1.0, 1e-2)
     big.ida_gain = auto.native_gain(big.states)
+    big.spectrum = None
     for acc in (1e-2, 1e-3, 1e-4, 1e-6):
         assert auto.choose(big, acc)[0][0] == "expm"
     # never weighted above the Python path's weight (a native step is not dearer than a Python one)
@@ -227,3 +231,98 @@ def test_auto_falls_back_to_radau_when_expm_and_ida_meet_their_round_off_floor()
     err = max(np.max(np.abs(res[f"{nm}.w"] - v[:, i])) for i, nm in enumerate(chain.names))
     span = max(np.ptp(v[:, i]) for i in range(len(chain.names)))
     assert err <= 1e-6 * span, err / span
+
+
+# ----------------------------------------------------------------------------------------------- rule E
+def damped_chain(n, d):
+    from regmech.bench.hard_models import benchmark_chain
+    return benchmark_chain(n, d=d)
+
+
+def test_the_split_bound_of_a_chain_is_its_top_frequency_and_its_damping():
+    """``spectral_split`` on the benchmark chain (J about 1, c = 1e4, d): oscillation about 2 sqrt(c / J) = 200
+    1/s, damping about 2 d / J, and their sum the spectral bound."""
+    from regmech.compile.odeform import ode_form
+    from regmech.solvers.ode_driver import spectral_bound, spectral_split
+    for d in (1.0, 100.0, 3000.0):
+        c = damped_chain(100, d).compile()
+        J = ode_form(c).jacobian()
+        osc, damp = spectral_split(J, c)
+        assert osc == pytest.approx(200.0, rel=0.02) and damp == pytest.approx(4.0 * d, rel=0.02)
+        rho = spectral_bound(J.tocsc(), c)
+        assert max(osc, damp) <= rho * (1 + 1e-12) and rho <= (osc + damp) * (1 + 1e-12)
+        lam = np.abs(np.linalg.eigvals(J.toarray())).max()
+        assert lam <= rho * (1 + 1e-9)
+
+
+def test_rule_e_sends_a_large_lightly_damped_linear_model_to_the_explicit_method():
+    """The 5 Hz-driven chain of 100 inertias at accuracy 1e-6: dop853's pair 20 ms against native ida's 51 ms and
+    expm's 235 ms on 1000 inertias (auto_rules.md, rule E); ida and expm stay as fallbacks."""
+    tr = auto.traits(damped_chain(100, 1.0), 0.0, 1.0, 1e-2)
+    assert tr.spectrum is not None
+    order = [s for s, _ in auto.choose(tr, 1e-6)]
+    assert order[0] == "dop853" and order[1:] == ["ida", "expm", "scipy:Radau"]
+    assert "lightly damped oscillation" in auto.choose(tr, 1e-6)[0][1]
+    # the pair's stable steps: the cap at the two tolerances over the span
+    from regmech.solvers.scipy_ivp import stability_cap
+    rho = tr.spectrum[0]
+    assert tr.explicit_steps(1e-6) == pytest.approx(1.0 / stability_cap("DOP853", rho, 1e-7)
+                                                    + 1.0 / stability_cap("DOP853", rho, 1e-8))
+
+
+def test_rule_e_steps_aside_for_damped_small_frictional_or_long_runs():
+    # the fastest rates are decays (dampers of 100 N m s/rad: damping 400 1/s against oscillation 200 1/s)
+    tr = auto.traits(damped_chain(100, 100.0), 0.0, 1.0, 1e-2)
+    assert tr.spectrum[2] > auto.EXPLICIT_DAMPING * tr.spectrum[1]
+    assert "dop853" not in [s for s, _ in auto.choose(tr, 1e-6)]
+    # too small: native ida's steps are cheaper there
+    tr = auto.traits(damped_chain(30, 1.0), 0.0, 1.0, 1e-2)
+    assert tr.spectrum is None and "dop853" not in [s for s, _ in auto.choose(tr, 1e-6)]
+    # more stable steps than DOP853's step budget (a run of 200 s)
+    tr = auto.traits(damped_chain(100, 1.0), 0.0, 200.0, 1.0)
+    assert tr.explicit_steps(1e-6) > 12_000 and "dop853" not in [s for s, _ in auto.choose(tr, 1e-6)]
+    # a friction device: events (ida's root finding)
+    import regmech as rm
+    from regmech.components import Clutch
+    from regmech.signals import Constant
+    m = damped_chain(100, 1.0)
+    cl = m.add(Clutch("clutch", mu=0.3, peak=1.1, fn_max=1.0, f_normalized=Constant(1.0)))
+    ground = m.add(rm.components.Fixed("g2"))
+    m.connect(m.components["J50"].flange_b, cl.flange_a)
+    m.connect(cl.flange_b, ground.flange)
+    tr = auto.traits(m, 0.0, 1.0, 1e-2)
+    assert tr.spectrum is None and "dop853" not in [s for s, _ in auto.choose(tr, 1e-3)]
+
+
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_the_default_call_on_a_large_chain_keeps_its_promise(accuracy):
+    """auto's dop853 under the contract against the exact flow (expm at a tight accuracy, its Richardson estimate
+    near round-off): the error over the range of each kind within the accuracy asked."""
+    m = damped_chain(100, 1.0)
+    res = m.simulate(1.0, 1e-2, accuracy=accuracy)
+    assert res.stats.solver == "dop853" and res.stats.error_estimate <= accuracy
+    ref = m.simulate(1.0, 1e-2, solver="expm", accuracy=1e-9)
+    for kind in ("phi", "w"):
+        names = [f"J{i}.{kind}" for i in range(100)]
+        err = max(np.max(np.abs(res[nm] - ref[nm])) for nm in names)
+        span = max(np.ptp(ref[nm]) for nm in names)
+        assert err <= accuracy * span, (kind, err / span)
+
+
+def test_rule_e_falls_back_when_the_explicit_method_refuses(monkeypatch):
+    from regmech.solvers import SOLVERS
+    from regmech.errors import SimulationError
+
+    def refuses(*args, **kwargs):
+        raise SimulationError("refused for the test")
+    refuses.options = SOLVERS["dop853"].options
+    monkeypatch.setitem(SOLVERS, "dop853", refuses)
+    res = damped_chain(100, 1.0).simulate(1.0, 1e-2, accuracy=1e-4)
+    reason = res.stats.extra["auto_reason"]
+    assert res.stats.solver == "ida" and "'dop853' refused first: refused for the test" in reason
+
+
+def test_rule_e_steps_aside_for_options_of_ida():
+    # an option of ida's that dop853 does not take: ida runs instead of a refusal naming dop853
+    res = damped_chain(100, 1.0).simulate(1.0, 1e-2, accuracy=1e-3, max_order=3)
+    assert res.stats.solver == "ida"

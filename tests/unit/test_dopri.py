@@ -146,14 +146,16 @@ def test_a_model_without_states_fills_the_grid(solver):
 
 
 @pytest.mark.parametrize("solver", ["dopri5", "dop853", "scipy:RK45", "scipy:DOP853", "scipy:Radau"])
-@pytest.mark.parametrize("when", ["start", "later"])
+@pytest.mark.parametrize("when", ["start", "later", "later_elsewhere"])
 def test_a_right_hand_side_that_is_nan_ends_in_an_error_naming_the_state(solver, when):
     # not reachable through the library's components (signals and start values are checked first): a subclass's
     # law that returns NaN. scipy's explicit methods looped forever on a NaN at the start (their first step is NaN)
     m = rm.library.coupled_clutches()
     c = m.compile()
     law = c.ode_rhs
-    t_bad = 0.0 if when == "start" else 0.5
+    # two instants later: where the shrinking steps stop short of the NaN depends on round-off of t (a least step
+    # on from there found it on one machine and missed it on another, for scipy:DOP853 and dop853 alike)
+    t_bad = {"start": 0.0, "later": 0.5, "later_elsewhere": 0.3711}[when]
 
     def broken(t, u, modes):
         g = law(t, u, modes)

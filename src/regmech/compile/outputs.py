@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..modes import FREE, HELD
+
 
 class Trajectory:
     """The output rows of a run and the compiled system that reads them.
@@ -221,6 +223,13 @@ class Trajectory:
                 kind, i = w
                 if what == "tau":
                     if kind == "g":
+                        j = i - c.mp - c.mv         # a friction row's mode column (its rows follow the rigid ones)
+                        if 0 <= j < c.mf:
+                            # a Free (or Held) row's law is lam = 0: exactly zero, not the round-off of the
+                            # solve that carried it (1.8e-18 N m in a released shift clutch of six_speed_car,
+                            # where a fresh machine's LU pivoted otherwise than the development one)
+                            return lambda j=j, i=i: np.where(np.isin(self.modes[:, j], (FREE, HELD)), 0.0,
+                                                             self.Y[:, c.ilam[i]])
                         return lambda: self.Y[:, c.ilam[i]]
                     inst = maps["instance"].get(dev.name)
                     if inst is None:         # a compliant row of a device of another kind: no kernel

@@ -65,6 +65,32 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
    ^ NATIVE_EXPM_POWER)`` instead: a native step is so cheap on models of
    a few hundred states that ida beat expm on every measured cell of the
    chains up to 100 inertias, and lost every one at 1000;
+E. (between rules 2 and 3, session 18) a linear model of at least
+   ``EXPLICIT_STATES_MIN`` ODE states without friction devices whose ODE
+   form is the linear one (no rigid links or gears with constraints), whose
+   dg/du tops out in lightly damped oscillation and whose explicit run fits
+   DOP853's step budget: ``dop853``. The test reads the linear form's dg/du
+   once (kept with the compiled system): its spectral bound ``rho`` and the
+   split of that bound into an oscillation part (the springs: ``2 sqrt(c /
+   J)`` on a chain) and a damping part (dampers, device states: ``2 d / J``)
+   (``ode_driver.spectral_split``). The damping must be at most
+   ``EXPLICIT_DAMPING`` times the oscillation: then the fastest rates are
+   oscillation that any stepping method resolves while it rings (BDF with
+   several times the steps per period of an order-8 method), not decays an
+   implicit method steps over. The pair's steps are bounded below by DOP853's
+   step cap on ``rho`` at the pair's two tolerances (``explicit_steps``) and
+   must stay within ``scipy_ivp.DEFAULT_MAX_STEPS["DOP853"]``. Measured
+   (benchmarks/results/auto_rules.md, "Rule E", both under the contract):
+   the 5 Hz-driven chains of 100 to 1000 inertias, dop853 0.4-1.0x the time
+   of auto's former choice at 1e-3 and 0.16-0.4x at 1e-6; random trees of
+   200 and 1000 inertias (lightly damped modes up to 200 Hz, all excited),
+   where ida needed 6,000-20,000 steps, 0.01-0.5x; the models it turns away
+   (damped chains, 30 inertias) as in the table. What it costs where it is
+   wrong: a chain with one link 1,000 times stiffer than the rest (a stiff
+   mode the drive does not excite, that ida's steps cross) took dop853 up to
+   1.9x auto's former choice. A refusal (the stiffness check, the contract)
+   falls back to ``ida``, then ``expm`` (a refusal as stiff is where ida's
+   implicit steps pay);
 4. otherwise ``ida`` (the fastest solver under the contract on every
    nonlinear case measured, stiff ones included).
 
@@ -76,7 +102,8 @@ divided by that -- where the periods counted are all ida must resolve
 frequency, which ``periods(a)`` leaves out).
 
 When the first choice refuses (``AccuracyError`` or another
-``SimulationError``), the next candidate runs: ``ida`` after ``expm``;
+``SimulationError``), the next candidate runs: ``ida`` after ``dop853``
+(which also steps aside for an option only ida takes); ``ida`` after ``expm``;
 ``expm`` (when a candidate) and then ``scipy:Radau`` after ``ida``. The result's ``stats.solver`` is the solver
 that produced it and ``stats.extra["auto_reason"]`` says why it was chosen
 (and what refused before). Options that set the tolerance or the step
@@ -139,6 +166,15 @@ NATIVE_GAIN_STATES = 60.0
 #: which is where they were measured to go (10,000 inertias)
 NATIVE_EXPM_STATES = 760.0
 NATIVE_EXPM_POWER = 1.43
+#: rule E: the explicit method auto may choose for a large linear model whose spectrum tops out in lightly damped
+#: oscillation, and the models it is weighed on: at least this many ODE states (below, native ida's cheap steps
+#: won every measured cell: chains of 30 inertias 1.5-5x, random trees of 50 inertias 1.1-2x) ...
+EXPLICIT = "dop853"
+EXPLICIT_STATES_MIN = 150
+#: ... and a damping bound at most this fraction of the oscillation bound (``ode_driver.spectral_split``): above
+#: it the fastest rates are decays that ida steps over (a chain of 100 inertias with dampers of 100 and 3000 N m
+#: s/rad, damping 2 and 60 times the oscillation: native ida 1.3-3.7x and 37-55x faster than dop853)
+EXPLICIT_DAMPING = 0.5
 
 
 @dataclass
@@ -156,6 +192,7 @@ class Traits:
     f_forcing: float = 0.0          # the fastest sinusoidal input [Hz]
     ida_gain: float = 1.0           # how many times cheaper ida's step is than on the Python path (native)
     f_nyquist: float = math.inf     # the output grid's Nyquist frequency [Hz]
+    spectrum: object = None         # rule E: (spectral bound, oscillation, damping) [1/s] of dg/du; None: no candidate
     _complete: bool = field(default=False, repr=False)
     _modes: object = field(default=False, repr=False)
 
@@ -178,6 +215,19 @@ class Traits:
         if self.modes is not None:
             return self.ida_gain if self._complete else 1.0
         return self.ida_gain if self.f_bound < self.f_nyquist else 1.0
+
+    def explicit_steps(self, accuracy: float) -> float:
+        """The steps the explicit method's pair of runs takes at least under the contract at ``accuracy``: its
+        stability cap (``scipy_ivp.stability_cap``) on the spectral bound at the pair's two tolerances, over
+        the span (inf when there is no candidate)."""
+        from .accuracy import RTOL_FACTOR, TIGHTEN
+        from .scipy_ivp import stability_cap
+        if self.spectrum is None:
+            return math.inf
+        rho = self.spectrum[0]
+        r = accuracy * RTOL_FACTOR[EXPLICIT]
+        caps = [stability_cap("DOP853", rho, r), stability_cap("DOP853", rho, r / TIGHTEN)]
+        return sum(self.span / h if h else 0.0 for h in caps)
 
     def expm_steps_at(self, accuracy: float) -> float:
         """``expm_steps(a)`` of the module docstring."""
@@ -233,9 +283,38 @@ def traits(model, t_start: float, t_end: float, dt_out: float) -> Traits:
         f_bound = min(f_nyquist, 2.0 * link[1] / (2 * math.pi))
     steps = len(output_grid(t_start, t_end, dt_out)) - 1 + len(signal_breakpoints(model, t_start, t_end))
     states = int(c.ode_size())
+    spectrum = _cached_spectrum(c) if linear and c.mf == 0 and states >= EXPLICIT_STATES_MIN else None
     return Traits(linear, bad, floor, spread, modes_of, t_end - t_start, steps, states, int(c.mf),
                   f_bound=f_bound, f_forcing=_forcing_frequency(model, c),
-                  ida_gain=native_gain(states) if _runs_native(c) else 1.0, f_nyquist=f_nyquist)
+                  ida_gain=native_gain(states) if _runs_native(c) else 1.0, f_nyquist=f_nyquist,
+                  spectrum=spectrum)
+
+
+def _cached_spectrum(c):
+    """Rule E's ``(bound, oscillation, damping)`` of the linear form's dg/du (``ode_driver.spectral_bound``,
+    ``spectral_split``), kept with the compiled system (dg/du is constant; dropped with the system on any change
+    of the model): 0.3-2 ms from 200 to 20,000 states. None when the ODE form is not the linear one (rigid
+    links or gears with constraints: the general form's right-hand side, several times dearer a call)."""
+    if "_auto_spectrum" not in c.__dict__:
+        c._auto_spectrum = _spectrum(c)
+    return c._auto_spectrum
+
+
+def _spectrum(c):
+    from ..compile.odeform import ode_form
+    from .ode_driver import spectral_bound, spectral_split
+    try:
+        form = ode_form(c)
+        if not form.linear:
+            return None
+        J = form.jacobian()
+        rho = spectral_bound(J.tocsc(), c)
+        osc, damp = spectral_split(J, c)
+    except Exception:       # noqa: BLE001 - a model the linear form cannot hold is simply no candidate
+        return None
+    if not (math.isfinite(rho) and rho > 0):
+        return None
+    return float(rho), float(osc), float(damp)
 
 
 def native_gain(states: int) -> float:
@@ -352,6 +431,7 @@ def native_size_weight(states: int) -> float:
 
 #: what each candidate of ``choose`` is, for the reason of a fallback
 METHODS = {"ida": "variable-order BDF with events located by root finding",
+           EXPLICIT: "an explicit Runge-Kutta method of order 8 (Dormand-Prince)",
            "expm": "the exact flow of the linear model",
            "scipy:Radau": "an implicit Runge-Kutta method"}
 
@@ -360,6 +440,7 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     """Candidates ``[(solver, reason), ...]`` in order (module docstring, rules 1-3)."""
     out = []
     expm_ok = tr.linear and tr.floor <= FLOOR_MARGIN * accuracy
+    explicit = explicit_reason(tr, accuracy)
     k = steps_per_period(accuracy, tr.step_gain() if expm_ok else 1.0)
     # the modes only where they can decide (their eigenvalues cost about as much as a short run)
     steps = tr.expm_steps_at(accuracy)
@@ -374,6 +455,10 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
         out.append(("expm", f"linear, its round-off bound {tr.floor:.2g} within {1 / NEAR_ROUNDOFF:g}x of the "
                             f"accuracy {accuracy:g}: a stepping method would need an rtol near the limit of the link "
                             f"spread {tr.spread:.3g}"))
+    elif explicit is not None:
+        out.append((EXPLICIT, explicit))
+    if out and out[0][0] == EXPLICIT:
+        pass    # rule 3 (expm) comes after the explicit method's refusal, with ida (below)
     elif expm_ok and tr.modes is None and tr.periods_bound() > 0 and steps <= large_model_bound(tr, accuracy):
         out.append(("expm", f"linear with {tr.states} states (too many for the modal traits) at accuracy "
                             f"{accuracy:g}: the exact flow takes about {steps:.0f} steps, against at most "
@@ -393,12 +478,29 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     native = (f"; its compiled callbacks make a step about {tr.ida_gain:.2g}x cheaper" if tr.ida_gain > 1.0
               else "")
     out.append(("ida", f"{why}: variable-order BDF with events located by root finding{native}"))
-    if out[0][0] == "ida" and expm_ok:
+    if expm_ok and not any(solver == "expm" for solver, _ in out):
         out.append(("expm", "linear, after ida refused: the exact flow"))
     # the last resort after expm and ida refused too (the hard case inertia_ratio_1e8 at accuracy 1e-6: both hit
     # the round-off floor of its 3e4 link spread, Radau's collocation met it with an estimate of 2.7e-7)
     out.append(("scipy:Radau", "after ida refused: an implicit Runge-Kutta method"))
     return out
+
+
+def explicit_reason(tr: Traits, accuracy: float):
+    """Rule E's reason to run the explicit method first, or None (module docstring)."""
+    if tr.spectrum is None:
+        return None
+    from .scipy_ivp import DEFAULT_MAX_STEPS
+    rho, osc, damp = tr.spectrum
+    if damp > EXPLICIT_DAMPING * osc:
+        return None
+    steps = tr.explicit_steps(accuracy)
+    if not steps <= DEFAULT_MAX_STEPS["DOP853"]:
+        return None
+    return (f"linear with {tr.states} states, no friction device, its fastest rates lightly damped oscillation "
+            f"(bounds: frequency {osc:.3g} 1/s, damping {damp:.3g} 1/s): a stepping method resolves it while it "
+            f"rings, and DOP853's steps (about {steps:.0f} for the pair of runs at accuracy {accuracy:g}) cost "
+            f"a few passes over the states each")
 
 
 @functools.lru_cache(maxsize=64)
@@ -446,6 +548,8 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
         # ``native`` says how ida runs; a fallback to another method (expm, Radau) simply runs without it
         run_given = {k: v for k, v in options.items() if k != "native" or solver == "ida"}
         unknown = sorted(set(run_given) - _accepted(fn))
+        if unknown and solver == EXPLICIT:
+            continue        # options of the other candidates (ida's): rule E steps aside rather than refuse them
         if unknown:
             from .options import unknown_message      # with the closest names, when there are
             raise ParameterError(f"simulate(): option(s) {unknown} are not options of '{solver}', which "

@@ -234,6 +234,21 @@ class Recorder:
         self._reserve(width, rates=False)
         return self.Y[self.k]
 
+    def row_block(self, width, rows):
+        """``y`` of the next ``rows`` rows (zero) as one ``(rows, width)`` view, to fill in place before
+        ``commit_block``; their ``y'`` is left as ``row_buffer`` leaves it."""
+        self._reserve(width, rows, rates=False)
+        return self.Y[self.k:self.k + rows]
+
+    def commit_block(self, ts, modes):
+        """Records the rows that ``row_block`` handed out at the instants ``ts`` (right-hand values)."""
+        k, n = self.k, len(ts)
+        self.T[k:k + n] = ts
+        self.L[k:k + n] = False
+        if self.mw:
+            self.MO[k:k + n] = modes
+        self.k = k + n
+
     def commit(self, t, modes, left=False):
         k = self.k
         self.T[k] = float(t)

@@ -525,6 +525,24 @@ class _Sink:
         if self.rec is not None:
             self.rec.add(t, y, yp, modes, left=left)
 
+    @property
+    def takes_blocks(self) -> bool:
+        """Whether ``states`` writes a block of interpolated rows at once (the linear form's rows into the
+        result; a companion run records no interpolated rows)."""
+        return self.linear and self.rec is not None
+
+    def states(self, ts, U, modes):
+        """Interpolated rows (not step ends) at the instants ``ts``, ``U`` their ODE states as the rows of an
+        ``(m, n)`` array: as ``state`` row by row, in one copy per kind of unknown (``takes_blocks``)."""
+        c, rec, m = self.c, self.rec, len(ts)
+        k = rec.k
+        Y = rec.row_block(c.N, m)
+        n = c.n
+        Y[:, c._sx], Y[:, c._sv], Y[:, c._sz] = U[:, :n], U[:, n:2 * n], U[:, 2 * n:]
+        right = c._t_right
+        self._pending.extend((k + i, float(t), bool(t >= right)) for i, t in enumerate(ts))
+        rec.commit_block(ts, modes)
+
     def state(self, t, u, modes, exact, left=False, row=None, g=None):
         """A row from the ODE state; ``exact``: u is a step's end value, not interpolated;
         ``row``: its ``consistent_row`` when already computed (``EventWatch.scan``); ``g``: ``g(t, u)``
@@ -1155,6 +1173,54 @@ def spectral_bound(J, c, compiled=False) -> float:
     return float(best)
 
 
+def spectral_split(J, c) -> tuple[float, float]:
+    """``(oscillation, damping)``: the two parts of ``spectral_bound``'s scaled row sums ``p_i s + q_i + r_i /
+    s``, bounded apart [1/s]. ``oscillation = min over s of max_i (p_i s + r_i / s)`` bounds the natural
+    frequencies (``2 sqrt(c / J)`` on a chain of springs and inertias: the springs' entries and the positions'
+    ``x' = v``), ``damping = max_i q_i`` the rates of the entries that do not scale with s (dampers on the
+    speeds, device states: ``2 d / J`` on that chain). Their sum bounds the spectral radius as
+    ``spectral_bound`` does. Where the damping is well below the oscillation, the top of the spectrum is
+    lightly damped oscillation (an explicit method's step limit there is the motion a stepping method
+    resolves while it rings); where it is above, the fastest rates are decays that an implicit method steps
+    over once they have died out (``solvers.auto``, rule E). Row and column sums alike, the smaller kept."""
+    J = sp.csr_matrix(J)
+    if J.data.size == 0:
+        return 0.0, 0.0
+    major = np.repeat(np.arange(len(J.indptr) - 1, dtype=J.indices.dtype), np.diff(J.indptr))
+    row, col = major, J.indices
+    nkx, nkv = len(c.Kx), len(c.Kv)
+    size = J.shape[0]
+    w = np.ones(size)
+    mass = np.where(c.mass > 0, c.mass, 1.0)
+    w[:nkx] = np.sqrt(mass[c.Kx])
+    w[nkx:nkx + nkv] = np.sqrt(mass[c.Kv])
+    e = np.zeros(size, int)
+    e[:nkx] = 1
+    val = np.abs(J.data) * w[row] / w[col]
+    power = e[row] - e[col]
+    best_osc, best_damp = np.inf, np.inf
+    for index in (row, col):
+        p, q, r = (np.bincount(index, weights=np.where(power == k, val, 0.0), minlength=size) for k in (1, 0, -1))
+        best_damp = min(best_damp, float(q.max()))
+        if not np.any(p) or not np.any(r):
+            best_osc = 0.0
+            continue
+        scale = math.sqrt(max(r.max(), 1e-300) / max(p.max(), 1e-300))
+        # the search on the rows that can be the largest near the optimum, the bound over every row at the s
+        # found (valid for any s), as in ``spectral_bound``
+        keys = (p, r, p * scale + r / scale)
+        keep = np.unique(np.argpartition(-np.stack(keys), min(32, size - 1), axis=1)[:, :33])
+        pk, rk = p[keep], r[keep]
+        centre = math.log(scale)
+        for grid in _BOUND_GRIDS:           # max of convex functions of s: unimodal in log s
+            s_ = np.exp(centre + grid)
+            vals = np.max(pk[:, None] * s_[None, :] + rk[:, None] / s_[None, :], axis=0)
+            centre = float(centre + grid[int(np.argmin(vals))])
+        best_osc = min(best_osc, float(np.max(p * math.exp(centre) + r / math.exp(centre))),
+                       float(np.max(p * scale + r / scale)))
+    return best_osc, best_damp
+
+
 def _compiled_spectral_bound(J, c) -> float:
     """``spectral_bound`` of a CSR or CSC matrix by the kernels of ``_bound_kernel`` (its docstring)."""
     from ._bound_kernel import envelope, sums_and_rows
@@ -1531,7 +1597,14 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
                 # the output instants inside the step, read from the interpolant in one call
                 between = [tq for tq, exact in covered if not exact]
                 if between:
-                    states.update(zip(between, stepper.interpolate_many(between)))
+                    block = stepper.interpolate_many(between)
+                    if watch is None and out.takes_blocks and isinstance(block, np.ndarray):
+                        # no event to look for: the step's instants go to the result as one block of rows
+                        out.states(between, block, modes)
+                        k_next += len(between)
+                        covered = covered[len(between):]        # the step's end, when it is an output instant
+                    else:
+                        states.update(zip(between, block))
             if watch is not None:
                 inside = [(tq, states[tq]) for tq, exact in covered if not exact]
                 end_values = watch.values(stepper.t, stepper.u, modes)

@@ -214,10 +214,13 @@ class ScipyStepper(Stepper):
                 f"{type(exc).__name__}: {exc}.{scale_hint(self.problem.c)} Try 'ida' or check the parameters."
             ) from exc
         if self.solver.status == "failed":
-            # the explicit classes shrink the step on a NaN as on a large error until it is too small: look at the
-            # rate where they stopped, and one least step on, so that the cause is named rather than the step
+            # the explicit classes shrink the step on a NaN as on a large error until it is below their least step
+            # (10 spacings of t), dividing it by 5 at most at each rejection: the stages that met the NaN lay up
+            # to 5 least steps on. Look at the rate there, so that the cause is named rather than the step (one
+            # least step on was not enough: whether the NaN was met within it depended on round-off of t)
             t, y = self.solver.t, self.solver.y
-            for tq in (t, t + 10.0 * abs(np.nextafter(t, np.inf) - t)):
+            least = 10.0 * abs(np.nextafter(t, np.inf) - t)
+            for tq in t + least * np.array([0.0, 1.0, 2.0, 3.0, 5.0, 10.0]):
                 self._refuse_nonfinite_rate(np.asarray(self.problem.rhs(tq, y)), t, "failed")
             raise SimulationError(f"{self.label} failed at t={self.solver.t:.6g} in model "
                                   f"'{self.problem_name}': {str(msg).rstrip('.')}. Try another rtol or a stiff "
@@ -239,13 +242,18 @@ class ScipyStepper(Stepper):
         return self._dense(tq)
 
     def interpolate_many(self, tqs):
+        """The states at ``tqs``: a list of rows, or from three instants on an ``(m, n)`` array (its rows).
+        """
         # scipy's dense output evaluates many instants at once, element by element as for one (DOP853, Radau,
         # BDF) or by one matrix product (RK45, RK23): one call per step instead of one per output instant
         if len(tqs) <= 2:          # a large model's one or two outputs per step: no batch to gain, a copy to pay
             return [self.interpolate(tq) for tq in tqs]
         if self._dense is None:
             self._dense = self.solver.dense_output()
-        return list(np.ascontiguousarray(self._dense(np.asarray(tqs, float)).T))
+        rows = getattr(self._dense, "rows", None)      # regmech's Dormand-Prince: (m, n) at once
+        if rows is not None:
+            return rows(tqs)
+        return np.ascontiguousarray(self._dense(np.asarray(tqs, float)).T)
 
     def stats(self):
         return {"lu_decompositions": int(getattr(self.solver, "nlu", 0) or 0) - self._lu0}
