@@ -113,6 +113,14 @@ def _simulate(model, t_end, dt_out, solver, accuracy, t_start, options):
     fn = _solver(solver)
     if accuracy is None:
         res = fn(model, t_start=t_start, t_end=t_end, dt_out=dt_out, **options)
+        traj = getattr(res, "_traj", None)
+        if traj is not None:
+            # a named solver's run has no estimate to hold it: a passive model's energy book does (the contract's
+            # runs are held by its estimate, and its fixed-step retries by the step Richardson suggests)
+            from .passive import check as check_passive_energy
+            given = ", ".join(f"{k}={options[k]:g}" for k in ("rtol", "atol", "h", "tol")
+                              if isinstance(options.get(k), (int, float)))
+            check_passive_energy(traj.c, traj.t, traj.Y, solver, given)
         rtol = options.get("rtol", options.get("tol"))
         if rtol is not None and hasattr(res, "stats"):
             res.stats.extra.setdefault("rtol", rtol)     # the tolerance Result.integral aims at

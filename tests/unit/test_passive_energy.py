@@ -1,0 +1,77 @@
+"""A passive linear model's energy may not grow (``regmech.solvers.passive``): a run whose energy grew more than
+twofold is refused, naming the model, the growth and what to do; models the book cannot judge are not checked."""
+
+import numpy as np
+import pytest
+
+import regmech as rm
+from regmech.bench.hard_models import energy, undamped_chain
+from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
+from regmech.signals import Constant, Sine
+from regmech.solvers.passive import ENERGY_GROWTH, passive_energy
+
+
+@pytest.mark.parametrize("solver, rtol", [("scipy:RK45", 1e-2), ("dopri5", 1e-2), ("scipy:LSODA", 1e-2),
+                                          ("ida", 1e-1)])
+def test_a_run_whose_energy_grew_on_a_passive_model_is_refused(solver, rtol):
+    # the hard case long_horizon (undamped 4-inertia chain, 100 s): RK45 at rtol 1e-2 returned an answer whose
+    # energy had grown 12,169-fold (38 times the range off) with no error; ida at 0.1 691-fold, LSODA 32-fold
+    m, _ = undamped_chain()
+    with pytest.raises(rm.SimulationError) as err:
+        m.simulate(100.0, 0.1, solver=solver, rtol=rtol)
+    msg = str(err.value)
+    assert "passive" in msg and "energy grew" in msg and "'undamped_chain'" in msg and solver in msg
+    assert "tighter rtol" in msg and "accuracy=" in msg
+
+
+@pytest.mark.parametrize("solver, rtol", [("scipy:RK45", 1e-3), ("scipy:DOP853", 1e-2), ("ida", 1e-2),
+                                          ("dop853", 1e-6)])
+def test_runs_whose_energy_stays_are_returned(solver, rtol):
+    m, e0 = undamped_chain()
+    res = m.simulate(100.0, 0.1, solver=solver, rtol=rtol)
+    assert energy(res, 4).max() <= ENERGY_GROWTH * e0
+
+
+def test_the_book_is_the_energy_of_masses_and_springs():
+    m, e0 = undamped_chain()
+    res = m.simulate(1.0, 0.1, solver="expm")
+    book = passive_energy(m.compile())
+    assert book is not None
+    np.testing.assert_allclose(book.of_rows(res._traj.Y), energy(res, 4), rtol=1e-12, atol=1e-12 * e0)
+
+
+def two_masses(**spring):
+    m = rm.Model("pair")
+    ground = m.add(Fixed("ground"))
+    a = m.add(Inertia("a", J=1.0, w0=3.0))
+    b = m.add(Inertia("b", J=2.0))
+    s = m.add(SpringDamper("s", c=100.0, d=0.5, **spring))
+    g = m.add(Spring("g", c=10.0))
+    m.connect(a.flange_b, s.flange_a)
+    m.connect(s.flange_b, b.flange_a)
+    m.connect(b.flange_b, g.flange_a)
+    m.connect(g.flange_b, ground.flange)
+    return m
+
+
+def test_models_the_book_cannot_judge_are_not_checked():
+    assert passive_energy(two_masses().compile()) is not None
+    assert passive_energy(two_masses(phi_rel0=0.1).compile()) is None          # a preload: its work is not booked
+    for tau in (Constant(1.0), Sine(amplitude=1.0, freq_hz=2.0)):              # a source
+        m = two_masses()
+        drive = m.add(Torque("drive", tau=tau))
+        m.connect(drive.flange, m.components["a"].flange_a)
+        assert passive_energy(m.compile()) is None
+    m = two_masses()
+    drive = m.add(Torque("drive", tau=Constant(0.0)))                          # a source that does nothing
+    m.connect(drive.flange, m.components["a"].flange_a)
+    assert passive_energy(m.compile()) is not None
+    from regmech.library import coupled_clutches
+    assert passive_energy(coupled_clutches().compile()) is None                # friction, sources
+
+
+def test_a_damped_passive_model_loses_energy_and_runs():
+    res = two_masses().simulate(5.0, 0.01, solver="scipy:RK45", rtol=1e-2)
+    book = passive_energy(res._traj.c)
+    E = book.of_rows(res._traj.Y)
+    assert E[-1] < E[0] and E.max() <= ENERGY_GROWTH * E[0]
