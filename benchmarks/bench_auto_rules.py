@@ -173,6 +173,34 @@ def train(n, c=1e6, d=1e3, mass=1e4):
     return m
 
 
+def boundary(a):
+    """Rule E's size threshold against the accuracy: dop853 against native ida, both under the contract, on
+    models of 200 and 300 states (chains, random trees, trains of 100 and 150), accuracies 1e-3 to 1e-6."""
+    from regmech.bench.hard_models import benchmark_chain
+    cases = [("chain100", lambda: benchmark_chain(100), 1.0), ("chain150", lambda: benchmark_chain(150), 1.0),
+             ("tree100", lambda: random_tree(100, 5), 1.0), ("tree150", lambda: random_tree(150, 6), 1.0),
+             ("train100", lambda: train(100), 10.0), ("train150", lambda: train(150), 10.0)]
+    lines = ["## Rule E's threshold against the accuracy", "",
+             f"`python benchmarks/bench_auto_rules.py --boundary`: dop853 and native ida under the contract, "
+             f"dt_out 1e-2, interleaved, medians of {a.repeats}, wall ms.", "",
+             "| model | states | accuracy | dop853 | ida native | ratio |", "|---|---|---|---|---|---|"]
+    for name, build, span in cases:
+        m = build()
+        m.compile()
+        for acc in (1e-3, 1e-4, 1e-5, 1e-6):
+            times = {"dop853": [], "ida native": []}
+            for _ in range(a.repeats + 1):      # the first round warms up
+                for s in times:
+                    times[s].append(one(m, s, acc, 1e-2, a.timeout, span)[0])
+            med = {s: statistics.median(v[1:]) if all(x is not None for x in v) else None for s, v in times.items()}
+            ratio = (f"{med['dop853'] / med['ida native']:.2f}" if med["dop853"] and med["ida native"] else "-")
+            fmt = lambda v: "-" if v is None else f"{v * 1e3:.1f}"  # noqa: E731
+            lines.append(f"| {name} | {m.compile().ode_size()} | {acc:g} | {fmt(med['dop853'])} | "
+                         f"{fmt(med['ida native'])} | {ratio} |")
+            print(lines[-1], flush=True)
+    return lines
+
+
 FAMILY_SOLVERS = ["auto", "dop853", "ida native"]
 FAMILY_NOTES = """
 What the table shows (rule E: `regmech.solvers.auto`, session 18):
@@ -316,7 +344,11 @@ def main(argv=None):
     p.add_argument("--out", default=str(Path(__file__).parent / "results" / "auto_rules.md"))
     p.add_argument("--families", action="store_true",
                    help="rule E's model families instead (appended to --out as its own section)")
+    p.add_argument("--boundary", action="store_true", help="rule E's size threshold against the accuracy (printed)")
     a = p.parse_args(argv)
+    if a.boundary:
+        print("\n".join(boundary(a)))
+        return
     if a.families:
         lines = families(a)
         out = Path(a.out)

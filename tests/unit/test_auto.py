@@ -280,6 +280,7 @@ def test_rule_e_steps_aside_for_damped_small_frictional_or_long_runs():
     assert tr.spectrum is None and "dop853" not in [s for s, _ in auto.choose(tr, 1e-6)]
     tr = auto.traits(damped_chain(100, 1.0), 0.0, 1.0, 1e-2)
     assert auto.choose(tr, 1e-3)[0][0] != "dop853" and auto.choose(tr, 1e-6)[0][0] == "dop853"
+    assert auto.choose(tr, auto.EXPLICIT_TIGHT)[0][0] == "dop853" != auto.choose(tr, 2 * auto.EXPLICIT_TIGHT)[0][0]
     tr = auto.traits(damped_chain(200, 1.0), 0.0, 1.0, 1e-2)
     assert auto.choose(tr, 1e-3)[0][0] == "dop853"
     # more stable steps than DOP853's step budget (a run of 200 s)

@@ -173,10 +173,12 @@ NATIVE_EXPM_POWER = 1.43
 EXPLICIT = "dop853"
 EXPLICIT_STATES_MIN = 150
 #: ... and at an accuracy looser than EXPLICIT_TIGHT at least EXPLICIT_STATES_MIN_LOOSE: at 1e-3 a native ida step
-#: is cheap enough that it matched dop853 at 200 states (the chain of 100 inertias 10-11 against 12-13 ms, a train
-#: of 100 cars 13 against 23 ms), where dop853 won 2.5x at 1e-6; at 400 and 600 states (a random tree of 200
-#: inertias, the chain of 300) dop853 won at 1e-3 too. The boundary between 1e-3 and 1e-6 is not measured
-EXPLICIT_TIGHT = 1e-5
+#: is cheap enough that it matched dop853 at 200-300 states (both under the contract, interleaved, medians of 5: the
+#: chain of 100 inertias 10.6 against 11.7 ms, of 150 16.0 against 12.8, a train of 150 cars 28.9 against 35.8, of
+#: 100 19.3 against 18.5), although random trees of 100 and 150 inertias went 4-9x faster with dop853; at 1e-4 and
+#: tighter dop853 was faster on all six (0.17-0.91x ida's time). From 400 states (a tree of 200 inertias, the chain
+#: of 300) dop853 won at 1e-3 too. Between 1e-4 and 1e-3 not measured
+EXPLICIT_TIGHT = 1e-4
 EXPLICIT_STATES_MIN_LOOSE = 400
 #: ... and a damping bound at most this fraction of the oscillation bound (``ode_driver.spectral_split``): above
 #: it the fastest rates are decays that ida steps over (a chain of 100 inertias with dampers of 100 and 3000 N m
