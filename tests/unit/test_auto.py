@@ -333,3 +333,41 @@ def test_rule_e_steps_aside_for_options_of_ida():
     assert auto.choose(auto.traits(damped_chain(100, 1.0), 0.0, 1.0, 1e-2), 1e-6)[0][0] == "dop853"
     res = damped_chain(100, 1.0).simulate(1.0, 1e-2, accuracy=1e-6, max_order=3)
     assert res.stats.solver == "ida"
+
+
+def test_the_candidates_are_each_named_once():
+    """A linear model whose round-off bound is near the accuracy (rule 2: expm) and too large for the modal traits
+    (rule 3 would add expm again): expm ran twice before it refused (the review's model: chain of 1000 inertias
+    with one link of 1e11 N m/rad, accuracy 1e-6)."""
+    from regmech.bench.hard_models import benchmark_chain
+    m = benchmark_chain(1000)
+    m.components["sd500"].c = 1e11
+    tr = auto.traits(m, 0.0, 1.0, 1e-2)
+    for acc in (1e-2, 1e-4, 1e-6):
+        names = [s for s, _ in auto.choose(tr, acc)]
+        assert len(names) == len(set(names)), (acc, names)
+    for n, d in ((100, 1.0), (100, 3000.0), (30, 1.0)):
+        tr = auto.traits(damped_chain(n, d), 0.0, 1.0, 1e-2)
+        for acc in (1e-2, 1e-4, 1e-6):
+            names = [s for s, _ in auto.choose(tr, acc)]
+            assert len(names) == len(set(names)), (n, d, acc, names)
+
+
+def test_a_fallback_that_cannot_take_the_options_says_why_the_first_choice_refused(monkeypatch):
+    # first_step is dop853's, not ida's: when dop853 refuses, the refusal is what the user reads, with a note
+    from regmech.solvers import SOLVERS
+    from regmech.errors import SimulationError
+    real = SOLVERS["dop853"]
+
+    def refuses(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, first_step=None, **kw):
+        raise SimulationError("refused for the test")
+    refuses.options = real.options
+    monkeypatch.setitem(SOLVERS, "dop853", refuses)
+    auto._accepted.cache_clear()
+    try:
+        with pytest.raises(SimulationError) as err:
+            damped_chain(100, 1.0).simulate(1.0, 1e-2, accuracy=1e-6, first_step=1e-4)
+    finally:
+        auto._accepted.cache_clear()
+    msg = str(err.value)
+    assert "refused for the test" in msg and "could not fall back to 'ida'" in msg and "first_step" in msg

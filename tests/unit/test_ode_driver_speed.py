@@ -62,3 +62,40 @@ def test_ode_form_matches_ida(model):
     for name in [k for k in ("J1.w", "J2.w", "J3.w", "J4.w", "inertia1.w", "inertia2.w") if k in a.names]:
         ya, yb = np.asarray(a[name]), np.interp(a.t, b.t, b[name])
         assert np.max(np.abs(ya - yb)) <= 1e-5 * max(np.ptp(yb), 1.0), name
+
+
+@pytest.mark.parametrize("solver", ["dop853", "dopri5", "scipy:RK45", "scipy:DOP853", "scipy:Radau"])
+def test_a_steps_output_rows_written_as_a_block_are_the_rows_written_one_by_one(solver, monkeypatch):
+    """``_Sink.states`` (a step's interpolated rows at once) against ``state`` row by row: the same instants, states,
+    rates, flags and modes, on a chain with a device state (a DC motor's current) and step inputs whose
+    breakpoints fall on output instants, with a start off the grid and dense output (several rows a step)."""
+    from regmech.bench.hard_models import benchmark_chain
+    from regmech.components import DCMotor, Inertia, SpringDamper
+    from regmech.signals import Step
+    from regmech.solvers import ode_driver
+
+    m = benchmark_chain(20, tau=Step(height=5.0, start_time=0.2))
+    motor = m.add(DCMotor("motor", u=Step(height=12.0, start_time=0.05), R=0.5, L=0.01, k=0.8))
+    rotor = m.add(Inertia("rotor", J=0.1))
+    coupling = m.add(SpringDamper("coupling", c=1e3, d=1.0))
+    m.connect(motor.flange, rotor.flange_a)
+    m.connect(rotor.flange_b, coupling.flange_a)
+    m.connect(coupling.flange_b, m.components["J0"].flange_b)
+    assert m.compile().nz > 0
+    calls = []
+    block = ode_driver._Sink.states
+
+    def counted(self, ts, U, modes):
+        calls.append(len(ts))
+        return block(self, ts, U, modes)
+    monkeypatch.setattr(ode_driver._Sink, "states", counted)
+    kw = dict(t_start=0.0123, dt_out=1e-4, solver=solver, rtol=1e-6)
+    a = m.simulate(0.3, **kw)
+    assert calls and max(calls) >= 3                            # the block path ran
+    monkeypatch.setattr(ode_driver._Sink, "takes_blocks", property(lambda self: False))
+    b = m.simulate(0.3, **kw)
+    ta, tb = a._traj, b._traj
+    assert np.array_equal(ta.t, tb.t) and np.array_equal(ta.left, tb.left) and np.array_equal(ta.modes, tb.modes)
+    np.testing.assert_array_equal(ta.Y, tb.Y)
+    for name in ("J0.a", "J19.a", "motor.i", "rotor.a"):
+        np.testing.assert_array_equal(a[name], b[name])

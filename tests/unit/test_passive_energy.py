@@ -75,3 +75,27 @@ def test_a_damped_passive_model_loses_energy_and_runs():
     book = passive_energy(res._traj.c)
     E = book.of_rows(res._traj.Y)
     assert E[-1] < E[0] and E.max() <= ENERGY_GROWTH * E[0]
+
+
+def test_a_damping_matrix_that_is_not_semidefinite_is_no_passive_model():
+    """A speed-dependent load of negative nominal torque between two damped masses (it drives: the review's
+    model) has a symmetric damping matrix with a positive diagonal, [[0.5, 1], [1, 0.5]], and an eigenvalue -0.5:
+    its energy grows 74-fold in 5 s, so the book may not judge it (it refused the exact flow of expm)."""
+    from regmech.components import Damper, LinearSpeedDependentTorque
+    m = rm.Model("self_excited")
+    g = m.add(Fixed("g"))
+    a = m.add(Inertia("a", J=1.0, w0=1.0))
+    b = m.add(Inertia("b", J=1.0, w0=0.0))
+    load = m.add(LinearSpeedDependentTorque("load", tau_nominal=-1.0, w_nominal=1.0))
+    da, db = m.add(Damper("da", d=1.5)), m.add(Damper("db", d=1.5))
+    m.connect(a.flange_b, load.flange)
+    m.connect(load.support, b.flange_a)
+    m.connect(a.flange_a, da.flange_a)
+    m.connect(da.flange_b, g.flange)
+    m.connect(b.flange_b, db.flange_a)
+    m.connect(db.flange_b, g.flange)
+    assert passive_energy(m.compile()) is None
+    for solver in ("expm", "ida"):
+        res = m.simulate(5.0, 0.1, solver=solver, **({"rtol": 1e-10} if solver == "ida" else {}))
+        E = 0.5 * (res["a.w"] ** 2 + res["b.w"] ** 2)
+        assert E.max() > 50 * E[0]                   # the growth is the model's own

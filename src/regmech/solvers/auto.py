@@ -73,7 +73,8 @@ E. (between rules 2 and 3, session 18) a linear model of at least
    DOP853's step budget: ``dop853``. The test reads the linear form's dg/du
    once (kept with the compiled system): its spectral bound ``rho`` and the
    split of that bound into an oscillation part (the springs: ``2 sqrt(c /
-   J)`` on a chain) and a damping part (dampers, device states: ``2 d / J``)
+   J)`` on a chain) and a damping part (dampers, device states: ``4 d / J``
+   on a chain, twice its fastest decay ``2 d / J``)
    (``ode_driver.spectral_split``). The damping must be at most
    ``EXPLICIT_DAMPING`` times the oscillation: then the fastest rates are
    oscillation that any stepping method resolves while it rings (BDF with
@@ -182,7 +183,9 @@ EXPLICIT_TIGHT = 1e-4
 EXPLICIT_STATES_MIN_LOOSE = 400
 #: ... and a damping bound at most this fraction of the oscillation bound (``ode_driver.spectral_split``): above
 #: it the fastest rates are decays that ida steps over (a chain of 100 inertias with dampers of 100 and 3000 N m
-#: s/rad, damping 2 and 60 times the oscillation: native ida 1.3-3.7x and 37-55x faster than dop853)
+#: s/rad, damping bound 4 d / J 2 and 60 times the oscillation bound 2 sqrt(c / J): native ida 1.3-3.7x and 37-55x
+#: faster than dop853). The bound of the damping is about twice the fastest decay (2 d / J on that chain), so
+#: this admits top modes of a damping ratio up to about 0.25
 EXPLICIT_DAMPING = 0.5
 
 
@@ -465,9 +468,9 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
                             f"accuracy {accuracy:g}: a stepping method would need an rtol near the limit of the link "
                             f"spread {tr.spread:.3g}"))
     elif explicit is not None:
-        out.append((EXPLICIT, explicit))
-    if out and out[0][0] == EXPLICIT:
-        pass    # rule 3 (expm) comes after the explicit method's refusal, with ida (below)
+        out.append((EXPLICIT, explicit))     # rule 3's expm comes after its refusal, behind ida (below)
+    if out:
+        pass                                 # rules 1, 2 or E chose: rule 3 is not asked
     elif expm_ok and tr.modes is None and tr.periods_bound() > 0 and steps <= large_model_bound(tr, accuracy):
         out.append(("expm", f"linear with {tr.states} states (too many for the modal traits) at accuracy "
                             f"{accuracy:g}: the exact flow takes about {steps:.0f} steps, against at most "
@@ -561,6 +564,12 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
         unknown = sorted(set(run_given) - _accepted(fn))
         if unknown and solver == EXPLICIT:
             continue        # options of the other candidates (ida's): rule E steps aside rather than refuse them
+        if unknown and refused:
+            # a fallback that cannot take the options (dop853's first_step, not ida's): the refusal that led here
+            first, exc = refused[-1]
+            raise type(exc)(f"{exc} (solver='auto' could not fall back to '{solver}': it does not take option(s) "
+                            f"{unknown}; name a solver to run with them)",
+                            **(exc.fields() if hasattr(exc, "fields") else {})) from exc
         if unknown:
             from .options import unknown_message      # with the closest names, when there are
             raise ParameterError(f"simulate(): option(s) {unknown} are not options of '{solver}', which "

@@ -1107,8 +1107,8 @@ def spectral_bound(J, c, compiled=False) -> float:
     ``s^(e_i - e_j) sqrt(m_i / m_j)`` (``e = 1`` on positions), so each row
     sum is ``p_i s + q_i + r_i / s``. The bound is the smallest over s of the
     largest row sum, and of the largest column sum likewise, which for a
-    chain of springs and dampers is ``2 sqrt(c / J) + 2 d / J``: the highest
-    frequency itself, plus the damping. (Measured against the exact radius:
+    chain of springs and dampers is ``2 sqrt(c / J) + 4 d / J``: the highest
+    frequency itself, plus twice the fastest decay. (Measured against the exact radius:
     see ``spectral_radius``.)
 
     ``compiled``: the passes in numba (``_bound_kernel``; for a model whose
@@ -1128,16 +1128,8 @@ def spectral_bound(J, c, compiled=False) -> float:
         J = sp.coo_matrix(J)
     if J.data.size == 0:
         return 0.0
-    nkx, nkv = len(c.Kx), len(c.Kv)
     size = J.shape[0]
-    w = np.ones(size)
-    mass = np.where(c.mass > 0, c.mass, 1.0)
-    w[:nkx] = np.sqrt(mass[c.Kx])
-    w[nkx:nkx + nkv] = np.sqrt(mass[c.Kv])
-    e = np.zeros(size, int)
-    e[:nkx] = 1
-    val = np.abs(J.data) * w[J.row] / w[J.col]
-    power = e[J.row] - e[J.col]                 # -1, 0 or 1: the entry scales as s**power
+    val, power = _scaled_entries(J.row, J.col, J.data, size, c)
 
     parts = [np.where(power == k, val, 0.0) for k in (1, 0, -1)]
 
@@ -1173,12 +1165,26 @@ def spectral_bound(J, c, compiled=False) -> float:
     return float(best)
 
 
+def _scaled_entries(row, col, data, size, c):
+    """``(val, power)`` of ``spectral_bound``'s scaling: each entry's magnitude times ``sqrt(m_i / m_j)`` and the
+    power of s it scales with (-1, 0 or 1; positions ``e = 1``)."""
+    nkx, nkv = len(c.Kx), len(c.Kv)
+    w = np.ones(size)
+    mass = np.where(c.mass > 0, c.mass, 1.0)
+    w[:nkx] = np.sqrt(mass[c.Kx])
+    w[nkx:nkx + nkv] = np.sqrt(mass[c.Kv])
+    e = np.zeros(size, int)
+    e[:nkx] = 1
+    return np.abs(data) * w[row] / w[col], e[row] - e[col]
+
+
 def spectral_split(J, c) -> tuple[float, float]:
     """``(oscillation, damping)``: the two parts of ``spectral_bound``'s scaled row sums ``p_i s + q_i + r_i /
     s``, bounded apart [1/s]. ``oscillation = min over s of max_i (p_i s + r_i / s)`` bounds the natural
     frequencies (``2 sqrt(c / J)`` on a chain of springs and inertias: the springs' entries and the positions'
     ``x' = v``), ``damping = max_i q_i`` the rates of the entries that do not scale with s (dampers on the
-    speeds, device states: ``2 d / J`` on that chain). Their sum bounds the spectral radius as
+    speeds, device states: ``4 d / J`` on that chain, twice its fastest decay). Their sum bounds the
+    spectral radius as
     ``spectral_bound`` does. Where the damping is well below the oscillation, the top of the spectrum is
     lightly damped oscillation (an explicit method's step limit there is the motion a stepping method
     resolves while it rings); where it is above, the fastest rates are decays that an implicit method steps
@@ -1188,16 +1194,8 @@ def spectral_split(J, c) -> tuple[float, float]:
         return 0.0, 0.0
     major = np.repeat(np.arange(len(J.indptr) - 1, dtype=J.indices.dtype), np.diff(J.indptr))
     row, col = major, J.indices
-    nkx, nkv = len(c.Kx), len(c.Kv)
     size = J.shape[0]
-    w = np.ones(size)
-    mass = np.where(c.mass > 0, c.mass, 1.0)
-    w[:nkx] = np.sqrt(mass[c.Kx])
-    w[nkx:nkx + nkv] = np.sqrt(mass[c.Kv])
-    e = np.zeros(size, int)
-    e[:nkx] = 1
-    val = np.abs(J.data) * w[row] / w[col]
-    power = e[row] - e[col]
+    val, power = _scaled_entries(row, col, J.data, size, c)
     best_osc, best_damp = np.inf, np.inf
     for index in (row, col):
         p, q, r = (np.bincount(index, weights=np.where(power == k, val, 0.0), minlength=size) for k in (1, 0, -1))

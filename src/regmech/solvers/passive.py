@@ -4,8 +4,9 @@ A model whose ODE form is the linear one (``compile.odeform``: masses, springs,
 dampers, no constraints, no device states) and that nothing drives (every
 signal a ``Constant`` and the rates at rest zero: no source, no preload, no
 offset) obeys ``M x'' + B x' + K x = 0`` with ``M`` the diagonal masses,
-``K = -M dg_v/dx`` and ``B = -M dg_v/dv``, both symmetric, ``B``'s diagonal
-non-negative. Its energy
+``K = -M dg_v/dx`` and ``B = -M dg_v/dv``, both symmetric, ``B`` diagonally
+dominant with a non-negative diagonal (so positive semidefinite: any network
+of dampers ``d >= 0``). Its energy
 
     E(x, v) = 1/2 v^T M v + 1/2 x^T K x        [J]
 
@@ -103,8 +104,15 @@ def _build(c):
         scale = abs(A).max() if A.nnz else 0.0
         if scale and abs(A - A.T).max() > SYMMETRY_TOL * scale:
             return None
-    if B.nnz and np.any(B.diagonal() < 0):
-        return None
+    if B.nnz:
+        # dE/dt = -v'Bv <= 0 needs B positive semidefinite; a symmetric B whose diagonal is at least the sum of
+        # the magnitudes off it is (Gershgorin), and every network of dampers d >= 0 (grounded or between masses)
+        # makes one. A negative speed-dependent load between two damped masses has a positive diagonal and an
+        # indefinite B: its energy grows, and the book would have refused its exact flow
+        diag = B.diagonal()
+        off = np.asarray(abs(B).sum(axis=1)).ravel() - np.abs(diag)
+        if np.any(diag < off - SYMMETRY_TOL * max(float(np.abs(diag).max()), 1e-300)):
+            return None
     return PassiveEnergy(c, mass, K)
 
 
