@@ -294,21 +294,8 @@ def families(a):
         m.compile()
         for dt in DT_OUTS:
             for acc in (1e-3, 1e-6):
-                times = {s: [] for s in FAMILY_SOLVERS}
-                picked = set()
-                for _ in range(a.repeats):
-                    for s in FAMILY_SOLVERS:
-                        if times[s] and times[s][-1] is None:
-                            continue
-                        t, used, _ = one(m, s, acc, dt, a.timeout, span)
-                        times[s].append(t)
-                        if s == "auto":
-                            picked.add(used)
-                med = {s: (statistics.median(v) if v and all(x is not None for x in v) else None)
-                       for s, v in times.items()}
-                best = min((v for s, v in med.items() if s != "auto" and v is not None), default=None)
-                ratio = med["auto"] / best if med["auto"] is not None and best else None
-                rows.append((name, int(m.compile().ode_size()), span, dt, acc, med, "/".join(sorted(picked)), ratio))
+                med, picked, ratio = cell(m, FAMILY_SOLVERS, acc, dt, a, span)
+                rows.append((name, int(m.compile().ode_size()), span, dt, acc, med, picked, ratio))
                 print(rows[-1], flush=True)
     load1 = os.getloadavg()
     fmt = lambda v: "-" if v is None else f"{v * 1e3:.0f}"  # noqa: E731
@@ -322,6 +309,25 @@ def families(a):
         lines.append(f"| {name} | {states} | {span:g} | {dt:g} | {acc:g} | {fmt(med['auto'])} | {fmt(med['dop853'])} | "
                      f"{fmt(med['ida native'])} | {picked} | {'-' if ratio is None else f'{ratio:.2f}'} |")
     return lines
+
+
+def cell(m, columns, acc, dt, a, span=1.0):
+    """One table cell: every column ``a.repeats`` times, interleaved (a column that refused or timed out once is
+    not run again, auto always); ``(medians, what auto chose, auto / fastest other)``."""
+    times = {s: [] for s in columns}
+    picked = set()
+    for _ in range(a.repeats):
+        for s in columns:
+            if times[s] and times[s][-1] is None and s != "auto":
+                continue
+            t, used, _ = one(m, s, acc, dt, a.timeout, span)
+            times[s].append(t)
+            if s == "auto":
+                picked.add(used)
+    med = {s: (statistics.median(v) if v and all(x is not None for x in v) else None) for s, v in times.items()}
+    best = min((v for s, v in med.items() if s != "auto" and v is not None), default=None)
+    ratio = med["auto"] / best if med["auto"] is not None and best else None
+    return med, "/".join(sorted(str(p) for p in picked)), ratio
 
 
 def one(m, column, acc, dt, timeout, span=1.0):
@@ -364,21 +370,8 @@ def main(argv=None):
         m.compile()
         for dt in DT_OUTS:
             for acc in ACCURACIES:
-                times = {s: [] for s in SOLVERS}
-                picked = set()
-                for _ in range(a.repeats):
-                    for s in SOLVERS:       # interleaved
-                        if times[s] and times[s][-1] is None and s != "auto":
-                            continue        # refused or timed out once: not again
-                        t, used, est = one(m, s, acc, dt, a.timeout)
-                        times[s].append(t)
-                        if s == "auto":
-                            picked.add(used)
-                med = {s: (statistics.median(v) if v and all(x is not None for x in v) else None)
-                       for s, v in times.items()}
-                best = min((v for s, v in med.items() if s != "auto" and v is not None), default=None)
-                ratio = med["auto"] / best if med["auto"] is not None and best else None
-                rows.append((n, dt, acc, med, "/".join(sorted(picked)), ratio))
+                med, picked, ratio = cell(m, SOLVERS, acc, dt, a)
+                rows.append((n, dt, acc, med, picked, ratio))
                 print(n, dt, acc, {k: (round(v, 3) if v else v) for k, v in med.items()}, picked,
                       ratio and round(ratio, 2), flush=True)
     load1 = os.getloadavg()
