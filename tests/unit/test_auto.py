@@ -371,3 +371,23 @@ def test_a_fallback_that_cannot_take_the_options_says_why_the_first_choice_refus
         auto._accepted.cache_clear()
     msg = str(err.value)
     assert "refused for the test" in msg and "could not fall back to 'ida'" in msg and "first_step" in msg
+
+
+def test_rule_e_prime_runs_expm_first_where_its_steps_are_fewer_on_a_fine_grid():
+    """A stiff lightly damped chain (links of 1e6 N m/rad: rho about 2000 1/s) driven by a step at accuracy 1e-6:
+    DOP853's cap takes about 2,700 steps for the pair against expm's 1,000 output steps at dt_out 1e-3 (the fuzz
+    campaign's cells of that kind: expm 1.1-8.5x faster), so expm runs first and dop853 next; at dt_out 1e-2 expm's
+    first step would be 20 times the fastest time scale (its first run refused and retried at a tiny step on the
+    random trees), and at 2,000 states an expm step costs more: dop853 first."""
+    from regmech.bench.hard_models import benchmark_chain
+    from regmech.signals import Step
+    m = benchmark_chain(100, tau=Step(height=10.0, start_time=0.1), c=1e6)
+    tr = auto.traits(m, 0.0, 1.0, 1e-3)
+    assert tr.explicit_steps(1e-6) > auto.EXPM_FIRST_RATIO * tr.expm_steps_at(1e-6)
+    order = [s for s, _ in auto.choose(tr, 1e-6)]
+    assert order == ["expm", "dop853", "ida", "scipy:Radau"]
+    assert "fewer than the about" in auto.choose(tr, 1e-6)[0][1]
+    coarse = auto.traits(m, 0.0, 1.0, 1e-2)
+    assert [s for s, _ in auto.choose(coarse, 1e-6)][:2] == ["dop853", "ida"]
+    big = auto.traits(benchmark_chain(700, tau=Step(height=10.0, start_time=0.1), c=1e6), 0.0, 1.0, 1e-3)
+    assert big.states > auto.EXPM_FIRST_STATES and auto.choose(big, 1e-6)[0][0] == "dop853"

@@ -90,7 +90,10 @@ E. (between rules 2 and 3, session 18) a linear model of at least
    (damped chains, 30 inertias) as in the table. What it costs where it is
    wrong: a chain with one link 1,000 times stiffer than the rest (a stiff
    mode the drive does not excite, that ida's steps cross) took dop853 up to
-   1.9x auto's former choice. A refusal (the stiffness check, the contract)
+   1.9x auto's former choice. When the explicit pair would take more than
+   twice the steps of ``expm`` on an output grid fine enough for expm's first step, and
+   the model is at most ``EXPM_FIRST_STATES`` states, ``expm`` runs first
+   and ``dop853`` after it (rule E', ``expm_first_reason``). A refusal (the stiffness check, the contract)
    falls back to ``ida``, then ``expm`` (a refusal as stiff is where ida's
    implicit steps pay);
 4. otherwise ``ida`` (the fastest solver under the contract on every
@@ -181,6 +184,21 @@ EXPLICIT_STATES_MIN = 150
 #: of 300) dop853 won at 1e-3 too. Between 1e-4 and 1e-3 not measured
 EXPLICIT_TIGHT = 1e-4
 EXPLICIT_STATES_MIN_LOOSE = 400
+#: rule E': ``expm`` before the explicit method when the explicit pair's steps are more than EXPM_FIRST_RATIO times
+#: expm's, the output grid's interval at most EXPM_FIRST_H_RHO times the fastest rate's time scale 1 / rho (a
+#: coarser grid made expm's first run fail its estimate and retry at a step of 2e-5 to 5e-3 s: random trees of 200,
+#: 400 and 1000 inertias at dt_out 1e-2, 0.4 s, 5.5 s and 20 s against dop853's 0.05-0.2 s) and the model at most
+#: EXPM_FIRST_STATES states (the tree of 1000 inertias, 2000 states, at dt_out 1e-3: expm 0.9 and 1.5 s against
+#: dop853's 0.23 and 0.47 s, with about as many steps). Measured: a helper's fuzz campaign of rule E (session 18: 48
+#: cells where it chose dop853, random chains, trees and trains of 75-600 bodies, accuracy 1e-3 and 1e-6, both
+#: under the contract; expm met the accuracy in all): this rule sends 22 of them to expm, which was faster in each
+#: (1.1-8.5x); of the 26 left to dop853, 18 took at most 1.06x expm's time (0.16-1.06x) and 7 1.5-4.75x (a
+#: ratio of steps of 0.49 and 1.02-1.74, or a grid coarser than the bound: dt_out rho of 70-84). The margin of 2 keeps the
+#: benchmark chains, where an expm step costs more than the fuzz models' (300 inertias at accuracy 1e-3, dt_out
+#: 1e-2: 1.16 times expm's steps, dop853 20 ms against expm's 42 ms)
+EXPM_FIRST_RATIO = 2.0
+EXPM_FIRST_STATES = 1200
+EXPM_FIRST_H_RHO = 10.0
 #: ... and a damping bound at most this fraction of the oscillation bound (``ode_driver.spectral_split``): above
 #: it the fastest rates are decays that ida steps over (a chain of 100 inertias with dampers of 100 and 3000 N m
 #: s/rad, damping bound 4 d / J 2 and 60 times the oscillation bound 2 sqrt(c / J): native ida 1.3-3.7x and 37-55x
@@ -468,7 +486,10 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
                             f"accuracy {accuracy:g}: a stepping method would need an rtol near the limit of the link "
                             f"spread {tr.spread:.3g}"))
     elif explicit is not None:
-        out.append((EXPLICIT, explicit))     # rule 3's expm comes after its refusal, behind ida (below)
+        fewer = expm_first_reason(tr, accuracy) if expm_ok else None
+        if fewer is not None:
+            out.append(("expm", fewer))      # rule E': fewer exact steps on a fine grid, the explicit method next
+        out.append((EXPLICIT, explicit))     # else rule 3's expm comes after its refusal, behind ida (below)
     if out:
         pass                                 # rules 1, 2 or E chose: rule 3 is not asked
     elif expm_ok and tr.modes is None and tr.periods_bound() > 0 and steps <= large_model_bound(tr, accuracy):
@@ -515,6 +536,21 @@ def explicit_reason(tr: Traits, accuracy: float):
             f"(bounds: frequency {osc:.3g} 1/s, damping {damp:.3g} 1/s): a stepping method resolves it while it "
             f"rings, and DOP853's steps (about {steps:.0f} for the pair of runs at accuracy {accuracy:g}) cost "
             f"a few passes over the states each")
+
+
+def expm_first_reason(tr: Traits, accuracy: float):
+    """Rule E''s reason to run ``expm`` before the explicit method, or None: a model of at most
+    ``EXPM_FIRST_STATES`` states whose explicit pair takes more than ``EXPM_FIRST_RATIO`` times expm's steps
+    (``explicit_steps`` against ``expm_steps_at``) on an output grid fine enough for expm's first step
+    (``dt_out * rho <= EXPM_FIRST_H_RHO``)."""
+    rho = tr.spectrum[0]
+    dt_out = 0.5 / tr.f_nyquist
+    dop, exact = tr.explicit_steps(accuracy), tr.expm_steps_at(accuracy)
+    if tr.states > EXPM_FIRST_STATES or dop <= EXPM_FIRST_RATIO * exact or dt_out * rho > EXPM_FIRST_H_RHO:
+        return None
+    return (f"linear with {tr.states} states, its fastest rates lightly damped oscillation: the exact flow takes "
+            f"about {exact:.0f} steps on the output grid (every {dt_out:.3g} s, {dt_out * rho:.2g} times the fastest "
+            f"rate's time scale), fewer than the about {dop:.0f} of DOP853's stability cap for the pair of runs")
 
 
 @functools.lru_cache(maxsize=64)
