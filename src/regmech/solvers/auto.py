@@ -369,13 +369,8 @@ def _forcing_frequency(model, c=None) -> float:
     ``_cached_modes``); their frequencies are read at every call (the library's signals are fixed when made, a user's own
     Signal subclass may not be). The
     pass over every component's values cost 0.2 ms on a chain of 100 inertias, at every default call."""
-    from ..signals import Signal
-    signals = c.__dict__.get("_model_signals") if c is not None else None
-    if signals is None:
-        signals = [val for comp in model.components.values() for val in comp._values.values()
-                   if isinstance(val, Signal)]
-        if c is not None:
-            c._model_signals = signals
+    from .common import model_signals
+    signals = model_signals(model, c)
     f = 0.0
     for val in signals:
         f = max(f, abs(float(getattr(val, "freq_hz", 0.0) or 0.0)))
@@ -490,9 +485,9 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
         if fewer is not None:
             out.append(("expm", fewer))      # rule E': fewer exact steps on a fine grid, the explicit method next
         out.append((EXPLICIT, explicit))     # else rule 3's expm comes after its refusal, behind ida (below)
-    if out:
-        pass                                 # rules 1, 2 or E chose: rule 3 is not asked
-    elif expm_ok and tr.modes is None and tr.periods_bound() > 0 and steps <= large_model_bound(tr, accuracy):
+    # rule 3, only when rules 1, 2 and E chose nothing
+    if not out and expm_ok and tr.modes is None and tr.periods_bound() > 0 \
+            and steps <= large_model_bound(tr, accuracy):
         out.append(("expm", f"linear with {tr.states} states (too many for the modal traits) at accuracy "
                             f"{accuracy:g}: the exact flow takes about {steps:.0f} steps, against at most "
                             f"{tr.periods_bound():.3g} periods (up to {tr.f_bound:.3g} Hz) a stepping method must "
@@ -602,7 +597,7 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
             continue        # options of the other candidates (ida's): rule E steps aside rather than refuse them
         if unknown and refused:
             # a fallback that cannot take the options (dop853's first_step, not ida's): the refusal that led here
-            first, exc = refused[-1]
+            exc = refused[-1][1]
             raise type(exc)(f"{exc} (solver='auto' could not fall back to '{solver}': it does not take option(s) "
                             f"{unknown}; name a solver to run with them)",
                             **(exc.fields() if hasattr(exc, "fields") else {})) from exc

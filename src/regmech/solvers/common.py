@@ -141,6 +141,20 @@ def signal_breakpoints(model, t_start, t_end):
     return sorted(pts)
 
 
+def model_signals(model, c=None) -> list:
+    """The ``Signal`` values of the model's components; with the compiled system ``c`` found once and kept with it
+    (a change of a parameter drops it). Their parameters are read by the callers at every call (a user's own Signal
+    subclass may change)."""
+    from ..signals import Signal
+    signals = c.__dict__.get("_model_signals") if c is not None else None
+    if signals is None:
+        signals = [val for comp in model.components.values() for val in comp._values.values()
+                   if isinstance(val, Signal)]
+        if c is not None:
+            c._model_signals = signals
+    return signals
+
+
 class Recorder:
     """Collects output rows (t, y, yp, left flag, modes).
 

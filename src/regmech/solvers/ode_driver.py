@@ -531,14 +531,18 @@ class _Sink:
         result; a companion run records no interpolated rows)."""
         return self.linear and self.rec is not None
 
+    def _place(self, y, u):
+        """The linear form's ODE state ``u = [x, v, z]`` (one row, or the rows of an array) into output row(s)
+        ``y`` of the compiled system's layout."""
+        c, n = self.c, self.c.n
+        y[..., c._sx], y[..., c._sv], y[..., c._sz] = u[..., :n], u[..., n:2 * n], u[..., 2 * n:]
+
     def states(self, ts, U, modes):
         """Interpolated rows (not step ends) at the instants ``ts``, ``U`` their ODE states as the rows of an
         ``(m, n)`` array: as ``state`` row by row, in one copy per kind of unknown (``takes_blocks``)."""
-        c, rec, m = self.c, self.rec, len(ts)
+        c, rec = self.c, self.rec
         k = rec.k
-        Y = rec.row_block(c.N, m)
-        n = c.n
-        Y[:, c._sx], Y[:, c._sv], Y[:, c._sz] = U[:, :n], U[:, n:2 * n], U[:, 2 * n:]
+        self._place(rec.row_block(c.N, len(ts)), U)
         right = c._t_right
         self._pending.extend((k + i, float(t), bool(t >= right)) for i, t in enumerate(ts))
         rec.commit_block(ts, modes)
@@ -555,9 +559,7 @@ class _Sink:
                 if g is None:
                     # y' = g(t, u) waits until an output reads it (``deferred_rates``): most reads are positions
                     # and speeds, and g per output row cost 8 % of a DOP853 run on a chain of 1000 inertias
-                    y = self.rec.row_buffer(c.N)
-                    n = c.n
-                    y[c._sx], y[c._sv], y[c._sz] = u[:n], u[n:2 * n], u[2 * n:]
+                    self._place(self.rec.row_buffer(c.N), u)
                     self._pending.append((self.rec.k, float(t), bool(t >= c._t_right)))
                 else:
                     consistent_row(c, t, u, modes, g, out=self.rec.row_buffers(c.N))
@@ -1141,28 +1143,32 @@ def spectral_bound(J, c, compiled=False) -> float:
         if not np.any(p) and not np.any(r):
             best = min(best, float(q.max()))
             continue
-
-        def norm(log_s, p, q, r):
-            s_ = math.exp(log_s)
-            return float(np.max(p * s_ + q + r / s_))
-        scale = math.sqrt(max(r.max(), 1e-300) / max(p.max(), 1e-300))
-        # the search runs on the few rows that can be the largest near the optimum (the largest p, q, r and
-        # sums); the bound is then the norm over every row at the s found (valid for any s, so the search
-        # needs no more precision than the bound is worth: 1 % of s at the end)
-        keys = (p, q, r, p * scale + q + r / scale)
-        keep = np.unique(np.argpartition(-np.stack(keys), min(32, size - 1), axis=1)[:, :33])
-        pk, qk, rk = p[keep], q[keep], r[keep]
-        # max of convex functions of s: unimodal in log s; a coarse grid over a wide bracket, then a fine one
-        # around its best point, each in one array operation (a golden-section search of 120 scalar
-        # evaluations cost 1-2 ms, 5-8 % of a 100-inertia chain's DOP853 run)
-        centre = math.log(scale)
-        for grid in _BOUND_GRIDS:
-            log_s = centre + grid
-            s_ = np.exp(log_s)
-            vals = np.max(pk[:, None] * s_[None, :] + qk[:, None] + rk[:, None] / s_[None, :], axis=0)
-            centre = float(log_s[int(np.argmin(vals))])
-        best = min(best, norm(centre, p, q, r), norm(math.log(scale), p, q, r))
+        best = min(best, _smallest_largest_sum(p, q, r, size))
     return float(best)
+
+
+def _smallest_largest_sum(p, q, r, size) -> float:
+    """``min over s > 0 of max_i (p_i s + q_i + r_i / s)`` (``p`` or ``r`` not all zero), to about 1 % of s."""
+    def norm(log_s):
+        s_ = math.exp(log_s)
+        return float(np.max(p * s_ + q + r / s_))
+    scale = math.sqrt(max(r.max(), 1e-300) / max(p.max(), 1e-300))
+    # the search runs on the few rows that can be the largest near the optimum (the largest p, q, r and
+    # sums); the bound is then the norm over every row at the s found (valid for any s, so the search
+    # needs no more precision than the bound is worth: 1 % of s at the end)
+    keys = (p, q, r, p * scale + q + r / scale)
+    keep = np.unique(np.argpartition(-np.stack(keys), min(32, size - 1), axis=1)[:, :33])
+    pk, qk, rk = p[keep], q[keep], r[keep]
+    # max of convex functions of s: unimodal in log s; a coarse grid over a wide bracket, then a fine one
+    # around its best point, each in one array operation (a golden-section search of 120 scalar
+    # evaluations cost 1-2 ms, 5-8 % of a 100-inertia chain's DOP853 run)
+    centre = math.log(scale)
+    for grid in _BOUND_GRIDS:
+        log_s = centre + grid
+        s_ = np.exp(log_s)
+        vals = np.max(pk[:, None] * s_[None, :] + qk[:, None] + rk[:, None] / s_[None, :], axis=0)
+        centre = float(log_s[int(np.argmin(vals))])
+    return min(norm(centre), norm(math.log(scale)))
 
 
 def _scaled_entries(row, col, data, size, c):
@@ -1201,21 +1207,9 @@ def spectral_split(J, c) -> tuple[float, float]:
         p, q, r = (np.bincount(index, weights=np.where(power == k, val, 0.0), minlength=size) for k in (1, 0, -1))
         best_damp = min(best_damp, float(q.max()))
         if not np.any(p) or not np.any(r):
-            best_osc = 0.0
+            best_osc = 0.0          # no spring (or no position): nothing oscillates
             continue
-        scale = math.sqrt(max(r.max(), 1e-300) / max(p.max(), 1e-300))
-        # the search on the rows that can be the largest near the optimum, the bound over every row at the s
-        # found (valid for any s), as in ``spectral_bound``
-        keys = (p, r, p * scale + r / scale)
-        keep = np.unique(np.argpartition(-np.stack(keys), min(32, size - 1), axis=1)[:, :33])
-        pk, rk = p[keep], r[keep]
-        centre = math.log(scale)
-        for grid in _BOUND_GRIDS:           # max of convex functions of s: unimodal in log s
-            s_ = np.exp(centre + grid)
-            vals = np.max(pk[:, None] * s_[None, :] + rk[:, None] / s_[None, :], axis=0)
-            centre = float(centre + grid[int(np.argmin(vals))])
-        best_osc = min(best_osc, float(np.max(p * math.exp(centre) + r / math.exp(centre))),
-                       float(np.max(p * scale + r / scale)))
+        best_osc = min(best_osc, _smallest_largest_sum(p, np.zeros(size), r, size))
     return best_osc, best_damp
 
 

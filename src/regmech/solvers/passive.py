@@ -90,13 +90,12 @@ def passive_energy(c):
 
 def _build(c):
     from ..compile.odeform import ode_form
-    from ..signals import Constant, Signal
+    from ..signals import Constant
+    from .common import model_signals
     if c.nz or c.mf or c.n == 0:
         return None
-    for comp in c.model.components.values():
-        for val in comp._values.values():
-            if isinstance(val, Signal) and not isinstance(val, Constant):
-                return None
+    if not all(isinstance(val, Constant) for val in model_signals(c.model, c)):
+        return None
     try:
         form = ode_form(c)
         if not form.linear or form.size != 2 * c.n:
@@ -173,5 +172,5 @@ def check(c, T, Y, solver: str, settings: str = "") -> None:
         f"fall), yet the run's energy grew {E[k] / e0:.3g}-fold, from "
         f"{e0:.4g} J to {E[k]:.4g} J by t={T[k]:.6g} s: the method's errors at these settings"
         f"{(' (' + settings + ')') if settings else ''} pumped energy into the motion (a numerical instability), "
-        f"and the answer is wrong. Use a tighter "
-        f"rtol (or a smaller h), ask for accuracy=... (the contract), or use 'ida' or 'expm'.")
+        f"and the answer is wrong.{c.stiffness_hint(always=True)} Use a tighter rtol (or a smaller h), ask for "
+        f"accuracy=... (the contract), or use 'ida' or 'expm'.")
