@@ -95,3 +95,39 @@ def test_a_nonlinear_models_jacobian_is_taken_again_once_the_run_has_moved_on(mo
     for t in (0.10, 0.15, 0.19, 0.35, 0.40):
         assert verdict.overruled(problem, Step(t, 0.01))
     assert taken == [0.10, 0.35] and verdict.overruled_count == 5
+
+
+def _stepped_pair(start):
+    """A light inertia on a stiff, nearly undamped link to a grounded one (a 503 Hz mode), a step torque on it."""
+    from regmech.signals import Step
+    m = rm.Model("stepped_pair")
+    ground = m.add(Fixed("ground"))
+    J1, J2 = m.add(Inertia("J1", J=1e-2)), m.add(Inertia("J2", J=1.0))
+    link, soft = m.add(SpringDamper("link", c=1e5, d=1e-3)), m.add(Spring("soft", c=100.0))
+    drive = m.add(Torque("drive", tau=Step(height=10.0, start_time=start)))
+    m.connect(drive.flange, J1.flange_a)
+    m.connect(J1.flange_b, link.flange_a)
+    m.connect(link.flange_b, J2.flange_a)
+    m.connect(J2.flange_b, soft.flange_a)
+    m.connect(soft.flange_b, ground.flange)
+    return m
+
+
+@pytest.mark.parametrize("start", [0.0, 0.1234])
+def test_exact_flow_is_never_judged_rough(start):
+    # read every millisecond, the 503 Hz mode changes completely from one output step to the next while the step
+    # drives the state up from rest: the roughness test stopped expm's exact flow as diverged (t = 0.012 s and
+    # 0.133 s). The answer against the closed form x(t) = A^-1 (e^{A (t - t_s)} - I) b of the state-space model
+    from scipy.linalg import expm as dense_expm
+    res = _stepped_pair(start).simulate(1.0, 1e-3, solver="expm", h=1e-3)
+    J, c, d, c0 = np.array([1e-2, 1.0]), 1e5, 1e-3, 100.0
+    K = np.array([[c, -c], [-c, c + c0]])
+    D = np.array([[d, -d], [-d, d]])
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-K / J[:, None], -D / J[:, None]]])
+    b = np.array([0.0, 0.0, 10.0 / J[0], 0.0])
+    t = np.asarray(res.t)
+    exact = np.array([np.linalg.solve(A, (dense_expm(A * (tk - start)) - np.eye(4)) @ b) if tk > start
+                      else np.zeros(4) for tk in t])
+    for k, name in enumerate(["J1.phi", "J2.phi", "J1.w", "J2.w"]):
+        got = np.asarray(res[name])
+        assert np.max(np.abs(got - exact[:, k])) <= 1e-6 * np.ptp(exact[:, k]), name

@@ -470,6 +470,11 @@ class Stepper:
     #: ``amplification`` is the method's own factor (not a stand-in): it may overrule a roughness verdict
     amplification_exact = False
 
+    #: the step is the model's exact flow (``expm``): its factor on a mode is ``exp(h lambda)``, above 1 only
+    #: on a mode that grows in the model itself, so no roughness verdict applies (``divergence.GrowthWatch``;
+    #: the growth test still does)
+    exact_flow = False
+
     def amplification(self, J, h, eigenvalues=None) -> float | None:
         """Spectral radius of one step of length h on ``u' = J u`` (J dense; ``eigenvalues``: J's, when known),
         None when not known.
@@ -1576,7 +1581,8 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
             if deadline is not None:
                 deadline.check(stepper.t)
             diverged = growth.check(stepper.t, stepper.u)
-            if diverged is not None and not (diverged.kind == "rough" and growth.verdict.overruled(problem, stepper)):
+            if diverged is not None and not (diverged.kind == "rough" and (
+                    stepper.exact_flow or growth.verdict.overruled(problem, stepper))):
                 raise _divergence_error(problem, stepper, name, diverged, growth, explicit, t, u)
             t_hit = None
             # the output instants this step covers (fixed-step methods land on them: at its end)
