@@ -391,3 +391,54 @@ def test_rule_e_prime_runs_expm_first_where_its_steps_are_fewer_on_a_fine_grid()
     assert [s for s, _ in auto.choose(coarse, 1e-6)][:2] == ["dop853", "ida"]
     big = auto.traits(benchmark_chain(700, tau=Step(height=10.0, start_time=0.1), c=1e6), 0.0, 1.0, 1e-3)
     assert big.states > auto.EXPM_FIRST_STATES and auto.choose(big, 1e-6)[0][0] == "dop853"
+
+
+def _stiff_random_chain(n, seed, d_scale):
+    """n inertias of 1e-3 to 10 kg m^2 on spring-dampers of 1e2 to 1e6 N m/rad (d_scale x 0.1-10 N m s/rad), a step
+    torque on the first, the last grounded: local modes of light inertias on stiff links, kHz above the rest."""
+    from regmech.components import SpringDamper, Torque
+    from regmech.signals import Step
+    rng = np.random.default_rng(seed)
+    m = rm.Model(f"stiff_random_chain_{n}_{seed}")
+    fixed = m.add(Fixed("fixed"))
+    J = [m.add(Inertia(f"J{i}", J=float(10 ** rng.uniform(-3, 1)))) for i in range(n)]
+    drive = m.add(Torque("drive", tau=Step(height=10.0, start_time=0.1)))
+    m.connect(drive.flange, J[0].flange_a)
+    for i in range(1, n):
+        sd = m.add(SpringDamper(f"sd{i}", c=float(10 ** rng.uniform(2, 6)), d=d_scale * float(10 ** rng.uniform(-1, 1))))
+        m.connect(J[i - 1].flange_b, sd.flange_a)
+        m.connect(sd.flange_b, J[i].flange_a)
+    end = m.add(Spring("ground", c=1e3))
+    m.connect(J[-1].flange_b, end.flange_a)
+    m.connect(end.flange_b, fixed.flange)
+    return m
+
+
+def test_rule3_counts_ringing_modes_above_the_output_grid():
+    # session 19's fuzz: rule 3 capped the periods a stepping method must resolve at the output grid's Nyquist
+    # frequency and chose ida, which resolved the lightly damped kHz modes of the stiff links for 2 s where expm
+    # took 0.06 s (a chain of 117 inertias). Ringing on top (damping <= EXPLICIT_DAMPING x oscillation) and a
+    # stiff spread lift the cap
+    m = _stiff_random_chain(117, 115, d_scale=0.013)
+    tr = auto.traits(m, 0.0, 1.0, 1e-2)
+    assert tr.modes is None and tr.spectrum is not None and auto.ringing(tr.spectrum, tr.spread)
+    assert tr.f_bound > 10 * tr.f_nyquist
+    first, reason = auto.choose(tr, 1e-3)[0]
+    assert first == "expm" and "while they ring" in reason
+    res = m.simulate(1.0, 1e-2)
+    assert res.stats.solver == "expm" and res.stats.error_estimate <= DEFAULT_ACCURACY
+    # heavy dampers on the same links: the top of the spectrum decays, the cap stays (ida steps over such modes)
+    heavy = auto.traits(_stiff_random_chain(117, 115, d_scale=30.0), 0.0, 1.0, 1e-2)
+    assert not auto.ringing(heavy.spectrum, heavy.spread) and heavy.f_bound == heavy.f_nyquist
+
+
+def test_rule3_keeps_the_cap_on_the_uniform_benchmark_chain():
+    # the benchmark chain rings on top too, but its links are alike (spread 1): no local modes far above the rest
+    # (the bound on its frequencies, 45 Hz, is below the output grid's Nyquist frequency); native ida stays auto's
+    # choice at the default accuracy (issue 15's chain100 row)
+    from regmech.bench.hard_models import benchmark_chain
+    tr = auto.traits(benchmark_chain(100), 0.0, 1.0, 1e-2)
+    assert tr.spectrum is not None and not auto.ringing(tr.spectrum, tr.spread)
+    assert tr.f_bound <= tr.f_nyquist
+    if tr.ida_gain > 1.0:
+        assert auto.choose(tr, DEFAULT_ACCURACY)[0][0] == "ida"

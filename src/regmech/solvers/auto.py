@@ -64,7 +64,19 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
    ``min(max(1, states / EXPM_STATES_REF), (states / NATIVE_EXPM_STATES)
    ^ NATIVE_EXPM_POWER)`` instead: a native step is so cheap on models of
    a few hundred states that ida beat expm on every measured cell of the
-   chains up to 100 inertias, and lost every one at 1000;
+   chains up to 100 inertias, and lost every one at 1000. The Nyquist cap
+   is lifted when the fastest modes *ring* (``ringing``: the top of dg/du's
+   spectrum lightly damped by rule E's test, ``damping <= EXPLICIT_DAMPING
+   * oscillation``, and a link spread of at least ``STIFF_SPREAD``): local
+   modes of stiff links far above the output grid, which a stepping method
+   resolves while they ring whether or not the grid shows them. Measured
+   (session 19, random chains and trees of 41-260 inertias 1e-3 to 10 kg
+   m^2 on links of 1e2 to 1e6 N m/rad, a step or a 1-20 Hz sine torque, 1 s,
+   accuracy 1e-3 and 1e-6, dt_out 1e-2 and 1e-3, each solver under the
+   contract): of the cells where rule 3 had chosen ida, the test sends 20
+   to expm; on four models ida had taken 1.7-4.3 s and expm takes
+   0.06-0.5 s; the worst loss, 0.22 -> 1.1 s (116 states at 1e-6, dt_out
+   1e-2, expm's coarse grid); in all 106 -> 87 s over the sample;
 E. (between rules 2 and 3, session 18) a linear model of at least
    ``EXPLICIT_STATES_MIN`` ODE states (``EXPLICIT_STATES_MIN_LOOSE`` at an
    accuracy looser than ``EXPLICIT_TIGHT``) without friction devices whose ODE
@@ -148,7 +160,7 @@ MODAL_MAX = 40
 EXPM_STEPS_PER_FORCING = 0.54
 #: a mode with a damping ratio below this counts as lightly damped (in the reason only)
 ZETA_LIGHT = 0.02
-#: link spread from which a model counts as stiff (in the reason only)
+#: link spread from which a model counts as stiff (in the reason; and rule 3's ringing test, ``ringing``)
 STIFF_SPREAD = 100.0
 #: options that set the tolerance or the step: the accuracy sets them under auto
 SETTINGS = ("rtol", "atol", "h", "tol")
@@ -222,7 +234,7 @@ class Traits:
     f_forcing: float = 0.0          # the fastest sinusoidal input [Hz]
     ida_gain: float = 1.0           # how many times cheaper ida's step is than on the Python path (native)
     f_nyquist: float = math.inf     # the output grid's Nyquist frequency [Hz]
-    spectrum: object = None         # rule E: (spectral bound, oscillation, damping) [1/s] of dg/du; None: no candidate
+    spectrum: object = None         # rules E and 3: (spectral bound, oscillation, damping) [1/s] of dg/du; None: not taken
     _complete: bool = field(default=False, repr=False)
     _modes: object = field(default=False, repr=False)
 
@@ -313,7 +325,12 @@ def traits(model, t_start: float, t_end: float, dt_out: float) -> Traits:
         f_bound = min(f_nyquist, 2.0 * link[1] / (2 * math.pi))
     steps = len(output_grid(t_start, t_end, dt_out)) - 1 + len(signal_breakpoints(model, t_start, t_end))
     states = int(c.ode_size())
-    spectrum = _cached_spectrum(c) if linear and c.mf == 0 and states >= EXPLICIT_STATES_MIN else None
+    # dg/du's spectral bounds (rule E, and rule 3's ringing test) for a model too large for the modal traits
+    spectrum = _cached_spectrum(c) if linear and c.mf == 0 and states > 2 * MODAL_MAX else None
+    if spectrum is not None and link is not None and ringing(spectrum, spread):
+        # rule 3: the fastest modes ring far above the output grid, and a stepping method resolves them while
+        # they ring: the Nyquist frequency is no cap of the periods it must resolve
+        f_bound = 2.0 * link[1] / (2 * math.pi)
     return Traits(linear, bad, floor, spread, modes_of, t_end - t_start, steps, states, int(c.mf),
                   f_bound=f_bound, f_forcing=_forcing_frequency(model, c),
                   ida_gain=native_gain(states) if _runs_native(c) else 1.0, f_nyquist=f_nyquist,
@@ -441,7 +458,8 @@ def large_model_bound(tr: Traits, accuracy: float) -> float:
     frequency: on the sine-driven chain of tests/unit/test_auto.py (fastest links near 160 Hz, output every
     10 ms, 100 and 200 inertias) native ida took 82-206 ms against expm's 148-1541 ms at 1e-2 to 1e-6. Not
     measured: a large, lightly damped model with modes far above that frequency (ida resolves them while they
-    ring; rule 1 covers the small ones)."""
+    ring; rule 1 covers the small ones). Those whose fastest modes ring, of stiff links (``ringing``), get
+    ``f_bound`` without that cap (``traits``)."""
     weight = max(1.0, tr.states / EXPM_STATES_REF)
     if tr.ida_gain > 1.0:
         weight = min(weight, native_size_weight(tr.states))
@@ -492,7 +510,10 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
                             f"{accuracy:g}: the exact flow takes about {steps:.0f} steps, against at most "
                             f"{tr.periods_bound():.3g} periods (up to {tr.f_bound:.3g} Hz) a stepping method must "
                             f"resolve, each of its steps costing more the larger the model"
-                            + (" (with compiled callbacks too)" if tr.ida_gain > 1.0 else "")))
+                            + (" (with compiled callbacks too)" if tr.ida_gain > 1.0 else "")
+                            + ("; its fastest modes are lightly damped ones of links stiffer than the rest, which a "
+                               "stepping method resolves while they ring, above the output grid too"
+                               if tr.f_bound > tr.f_nyquist else "")))
     why = "nonlinear" if not tr.linear else (
         f"linear, oscillating over {periods:.3g} periods at accuracy {accuracy:g} against about {steps:.0f} expm "
         f"steps" if periods > 0 else "linear")
@@ -514,9 +535,17 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     return out
 
 
+def ringing(spectrum, spread: float) -> bool:
+    """Rule 3's test (module docstring): the top of dg/du's spectrum is lightly damped oscillation (``damping <=
+    EXPLICIT_DAMPING * oscillation``, rule E's test) and the links spread by at least ``STIFF_SPREAD``, so that the
+    fastest modes are local ones of stiff links, far above the rest."""
+    _, osc, damp = spectrum
+    return damp <= EXPLICIT_DAMPING * osc and spread >= STIFF_SPREAD
+
+
 def explicit_reason(tr: Traits, accuracy: float):
     """Rule E's reason to run the explicit method first, or None (module docstring)."""
-    if tr.spectrum is None:
+    if tr.spectrum is None or tr.states < EXPLICIT_STATES_MIN:
         return None
     from .scipy_ivp import DEFAULT_MAX_STEPS
     rho, osc, damp = tr.spectrum
