@@ -1561,7 +1561,8 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
     ``deadline`` (``common.Deadline``, the run's wall-clock limit) is checked after every step."""
     c, modes = problem.c, problem.modes
     growth.segment_start(problem.rhs, t, t_stop, len(u))
-    stepper = make_stepper(problem, t, u, t_stop, knots)
+    with np.errstate(all="ignore"):     # a starting step estimate that overflows: the steps' checks report it
+        stepper = make_stepper(problem, t, u, t_stop, knots)
     _few_steps_check(problem, stepper, name, t, u, t_end, growth, explicit)
     if watch is not None:
         watch.arm(watch.values(t, u, modes))
@@ -1570,7 +1571,9 @@ def _run_segment(problem, make_stepper, t, u, t_stop, knots, watch, growth, out,
     try:
         while stepper.t < t_stop:
             u_before = stepper.u.copy() if watch is not None else None       # the step start, for _relocate
-            with np.errstate(over="ignore", invalid="ignore"):     # a blow-up is reported just below
+            # a blow-up is reported just below, by regmech (numpy's warnings from inside the step would only be
+            # noise before that error)
+            with np.errstate(all="ignore"):
                 stepper.step()
             if not stepper.t > stepper.t_old:
                 # a NaN or non-advancing time would leave this loop (or spin in it) without the outputs

@@ -120,6 +120,8 @@ stiff shaft); they are refused now. Pass ``max_steps`` to let such runs go on.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
@@ -204,7 +206,14 @@ class ScipyStepper(Stepper):
 
     def step(self):
         try:
-            msg = self.solver.step()
+            if self.method == "LSODA":
+                # LSODA's Fortran failures arrive as a UserWarning before the failed status that is reported below
+                # as a regmech error (the warning would only repeat it, pointing into scipy)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", UserWarning)
+                    msg = self.solver.step()
+            else:
+                msg = self.solver.step()
         except RegmechError:
             raise
         except (RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
