@@ -238,3 +238,30 @@ def test_a_model_too_stiff_for_max_steps_is_refused_up_front_as_by_scipy_methods
         benchmark_chain(30).simulate(1.0, 0.01, solver=solver, max_steps=30)
     msg = str(err.value)
     assert f"solver '{solver}'" in msg and "stiff for an explicit method" in msg and "'ida'" in msg
+
+
+@pytest.mark.parametrize("solver", ["dop853", "dopri5"])
+def test_the_compiled_stage_sweep_gives_the_loops_numbers(solver, monkeypatch):
+    """``OdeProblem.stage_sweep`` (a step's stages in one compiled call, ``_dopri_kernels.linear_stages``) makes the
+    same passes in the same order as the Python loop over the stages: the same steps, evaluations and numbers,
+    dense output included (a chain with a step input whose breakpoint falls inside a step)."""
+    pytest.importorskip("numba")
+    from regmech.bench.hard_models import benchmark_chain
+    from regmech.signals import Step
+    from regmech.solvers import ode_driver
+    m = benchmark_chain(120, tau=Step(height=5.0, start_time=0.0123))
+    m.compile()
+    used = []
+    sweep = ode_driver.OdeProblem.stage_sweep
+
+    def spy(self):
+        got = sweep(self)
+        used.append(got is not None)
+        return got
+    monkeypatch.setattr(ode_driver.OdeProblem, "stage_sweep", spy)
+    a = m.simulate(0.2, 1e-3, solver=solver, rtol=1e-7)
+    assert used and all(used)
+    monkeypatch.setattr(ode_driver.OdeProblem, "stage_sweep", lambda self: None)
+    b = m.simulate(0.2, 1e-3, solver=solver, rtol=1e-7)
+    assert a.stats.steps == b.stats.steps and a.stats.rhs_calls == b.stats.rhs_calls
+    np.testing.assert_array_equal(a._traj.Y, b._traj.Y)

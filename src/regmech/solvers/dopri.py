@@ -123,7 +123,7 @@ class DormandPrince:
     TOO_SMALL_STEP = "Required step size is less than spacing between numbers."
 
     def __init__(self, fun, t0, y0, t_bound, max_step=np.inf, rtol=1e-3, atol=1e-6, first_step=None,
-                 fun_into=None):
+                 fun_into=None, stages=None):
         self.fun = fun
         self.fun_into = fun_into
         self.t = float(t0)
@@ -141,6 +141,10 @@ class DormandPrince:
         self.status = "running"
         self.steps_begun = 0             # attempts started: a dense output holds until the next one
         self._k = compiled_passes(self.n)
+        # a compiled sweep over a step's stages (``OdeProblem.stage_sweep``): the same passes as the loop below
+        self._sweep = stages if self._k is not None else None
+        self._A_full = np.ascontiguousarray(self.A, dtype=np.float64)
+        self._C_full = np.ascontiguousarray(self.C, dtype=np.float64)
         self.f = self._eval(self.t, self.y)
         S = self.n_stages
         self.K = np.empty((self.K_rows(), self.n))
@@ -228,9 +232,13 @@ class DormandPrince:
             h = t_new - t
             h_abs = abs(h)
             K[0] = f
-            for s in range(1, S):
-                self._stage(y, self._a_rows[s], s, h, self._work)
-                self._eval_into(t + self.C[s] * h, self._work, s)
+            if self._sweep is not None:
+                self.nfev += S - 1
+                self._sweep(y, K, self._A_full, self._C_full, 1, S, t, h, self._work)
+            else:
+                for s in range(1, S):
+                    self._stage(y, self._a_rows[s], s, h, self._work)
+                    self._eval_into(t + self.C[s] * h, self._work, s)
             y_new = np.empty(self.n)
             self._stage(y, self._b, S, h, y_new)
             f_new = self._eval(t + h, y_new)
@@ -299,7 +307,11 @@ class Dopri5(DormandPrince):
         def weights(x):
             # x: (m,) instants as fractions of the step -> c (m,), w (m, rows)
             return np.zeros(x.shape), (x[:, None] ** powers) @ P.T
-        return StepOutput(self, weights, P.shape[0])
+
+        def weight_row(x):
+            # one instant (a float): c, w (rows,)
+            return 0.0, P @ (x ** powers)
+        return StepOutput(self, weights, P.shape[0], weight_row)
 
 
 class Dop853(DormandPrince):
@@ -319,6 +331,13 @@ class Dop853(DormandPrince):
 
     #: the rows of A of the three extra stages, each to its stage (13, 14, 15)
     _A_EXTRA_ROWS = [np.ascontiguousarray(a[:_ScipyDOP853.n_stages + 1 + i]) for i, a in enumerate(A_EXTRA)]
+    #: ... as rows 13-15 of one square matrix, and their nodes, for the compiled sweep (``_sweep``)
+    _A_DENSE = np.zeros((_ScipyDOP853.n_stages + 1 + len(C_EXTRA),) * 2)
+    _C_DENSE = np.zeros(_ScipyDOP853.n_stages + 1 + len(C_EXTRA))
+    for _i, _a in enumerate(_A_EXTRA_ROWS):
+        _A_DENSE[_ScipyDOP853.n_stages + 1 + _i, :len(_a)] = _a
+        _C_DENSE[_ScipyDOP853.n_stages + 1 + _i] = C_EXTRA[_i]
+    del _i, _a
 
     def K_rows(self) -> int:
         # the 13 stages of a step and the three more of its dense output (rows 13-15)
@@ -353,7 +372,10 @@ class Dop853(DormandPrince):
         self._check_stepped()
         K, h, t0, y0 = self.K, self.h_previous, self.t_old, self.y_old
         S1 = self.n_stages + 1
-        for i, (a, c) in enumerate(zip(self._A_EXTRA_ROWS, self.C_EXTRA) if h else ()):
+        if h and self._sweep is not None:
+            self.nfev += len(self.C_EXTRA)
+            self._sweep(y0, K, self._A_DENSE, self._C_DENSE, S1, S1 + len(self.C_EXTRA), t0, h, self._work)
+        for i, (a, c) in enumerate(zip(self._A_EXTRA_ROWS, self.C_EXTRA) if h and self._sweep is None else ()):
             s = S1 + i
             self._stage(y0, a, s, h, self._work)
             self._eval_into(t0 + c * h, self._work, s)
@@ -367,7 +389,18 @@ class Dop853(DormandPrince):
             w[:, 0] += b[1] - b[2]
             w[:, last] -= b[2]
             return b[0] - b[1] + 2.0 * b[2], w
-        return StepOutput(self, weights, D.shape[1])
+
+        def weight_row(x):
+            # one instant (a float): the same b_k in Python floats, w (rows,) from one product (the array form
+            # above made a dozen arrays of one entry, 30 us an output instant on the chain of 100 inertias)
+            u = 1.0 - x
+            xu = x * u
+            b = (x, xu, x * x * u, xu * xu, x ** 3 * u * u, xu ** 3, x ** 4 * u ** 3)
+            w = np.array(b[3:]) @ D
+            w[0] += b[1] - b[2]
+            w[last] -= b[2]
+            return b[0] - b[1] + 2.0 * b[2], w
+        return StepOutput(self, weights, D.shape[1], weight_row)
 
 
 class StepOutput:
@@ -377,8 +410,9 @@ class StepOutput:
     output rows of a step: their weights made together and the sum over the stages one matrix product). It
     reads the stages in place, so it holds only until the integrator's next step (a later call raises)."""
 
-    def __init__(self, solver, weights, rows):
+    def __init__(self, solver, weights, rows, weight_row=None):
         self.solver, self.weights, self.n_stages = solver, weights, rows
+        self.weight_row = weight_row          # one instant's (c, w), cheaper than ``weights`` on an array of one
         self.t_old, self.h, self.y_old, self.y = solver.t_old, solver.h_previous, solver.y_old, solver.y
         self.K = solver.K
         self.step = solver.steps_begun
@@ -391,8 +425,13 @@ class StepOutput:
         self._check()
         if self.h == 0.0:                    # an empty step (no state, or an empty span): the state itself
             return self.y.copy()
-        c, w = self.weights(np.array([(float(t) - self.t_old) / self.h]))
-        c, w = float(c[0]), np.ascontiguousarray(w[0], dtype=np.float64)
+        x = (float(t) - self.t_old) / self.h
+        if self.weight_row is not None:
+            c, w = self.weight_row(x)
+        else:
+            c, w = self.weights(np.array([x]))
+            c, w = float(c[0]), w[0]
+        w = np.ascontiguousarray(w, dtype=np.float64)
         out = np.empty(self.y_old.size)
         if self.solver._k is not None:
             self.solver._k.blend(self.y_old, self.y, c, self.K, w, self.n_stages, self.h, out)

@@ -93,6 +93,29 @@ class OdeProblem:
         else:
             out[:] = self.rhs(t, u)
 
+    def stage_sweep(self):
+        """``sweep(y, K, A, C, s0, s1, t, h, work)``: the stages ``s0 <= s < s1`` of a Runge-Kutta step in one compiled
+        call (``_dopri_kernels.linear_stages``; counted here like ``rhs_into``), or None: only for the linear form
+        whose compiled right-hand side evaluates its signals itself (else Python writes them before each call)."""
+        if self._linear_rhs_into is None:
+            return None
+        from ..compile.odeform import ode_form
+        from . import dopri
+        form = ode_form(self.c)
+        native = form._native
+        if native is None or (not native[3] and form.V is not None):
+            return None
+        kernels = dopri.compiled_passes(self.size)
+        if kernels is None:
+            return None
+        _, ih, fh, _, _ = native
+        c, buf, stages = self.c, form.buf, kernels.linear_stages
+
+        def sweep(y, K, A, C, s0, s1, t, h, work):
+            self.nfev += s1 - s0
+            stages(y, K, A, C, s0, s1, float(t), float(h), float(c._t_right), work, buf, ih, fh)
+        return sweep
+
     def jacobian(self, t, u, g=None):
         """``dg/du`` (scipy CSC) by forward differences, one evaluation per column group."""
         self.njev += 1

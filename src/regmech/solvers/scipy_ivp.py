@@ -174,6 +174,7 @@ class ScipyStepper(Stepper):
             options["atol"] = scale.tolerances()
         if cls in dopri.CLASSES.values():
             options["fun_into"] = problem.rhs_into          # stages written in place (``dopri``)
+            options["stages"] = problem.stage_sweep()       # ... or all of a step's in one compiled call
         self.solver = cls(problem.rhs, t0, u0, t_bound, **options)
         f0 = getattr(self.solver, "f", None)
         if f0 is not None:
