@@ -36,8 +36,17 @@ def test_explicit_method_held_by_the_tolerance_is_told_so():
     with pytest.raises(rm.SimulationError) as err:
         model.simulate(20.0, dt_out=0.1, solver="scipy:RK23", rtol=1e-8, max_steps=500)
     msg = str(err.value)
-    assert "set by the tolerance" in msg and "DOP853" in msg
+    assert "set by the tolerance" in msg and "'dop853'" in msg
     assert "fastest link is Spring 'spring" in msg and "periods in the run" in msg
+
+
+@pytest.mark.parametrize("solver", ["scipy:DOP853", "dop853"])
+def test_the_highest_order_method_is_not_sent_to_itself(solver):
+    model, _ = undamped_chain()
+    with pytest.raises(rm.SimulationError) as err:
+        model.simulate(20.0, dt_out=0.1, solver=solver, rtol=1e-10, max_steps=100)
+    msg = str(err.value)
+    assert "set by the tolerance" in msg and "higher-order method" not in msg and "raise max_steps" in msg
 
 
 def test_implicit_method_is_capped_too():

@@ -487,10 +487,11 @@ class StepBudget:
             return (f"h * rho = {h * rho:.3g} with the spectral radius rho = {rho:.3g} 1/s of the Jacobian, at "
                     f"the stability limit {self.stability_bound:g} of this explicit method: the model is stiff "
                     f"for it (about {more:.3g} more steps to go)"), True
+        # DOP853 is the highest order on offer: suggesting it to itself would send the user in a circle
+        higher = "" if "853" in self.name else " (a higher-order method such as 'dop853' takes fewer steps)"
         return (f"h * rho = {h * rho:.3g} is well below this method's stability limit {self.stability_bound:g} "
                 f"(rho = {rho:.3g} 1/s): the steps are set by the tolerance, i.e. the run is long for this "
-                f"method's order at this rtol (a higher-order method such as 'scipy:DOP853' takes fewer "
-                f"steps)"), False
+                f"method's order at this rtol{higher}"), False
 
 
 # ----------------------------------------------------------------- time limit
