@@ -206,7 +206,7 @@ FAMILY_NOTES = """
 What the table shows (rule E: `regmech.solvers.auto`, session 18):
 
 * `auto` runs `dop853` first on a linear model of at least 150 ODE states (400 at an accuracy looser than
-  1e-4) without friction devices whose
+  1e-4 when this table was made; 200 since session 19) without friction devices whose
   damping bound is at most half its oscillation bound (`ode_driver.spectral_split`) and whose pair of runs fits
   DOP853's step budget; `ida`, then `expm`, if it refuses. The chains and trees pass the test, the damped chains
   (`chain100_d100`, `chain100_d3000`: damping 2 and 60 times the oscillation) and `tree200_heavy_d` (9 times)

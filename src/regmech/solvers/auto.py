@@ -78,7 +78,7 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
    0.06-0.5 s; the worst loss, 0.22 -> 1.1 s (116 states at 1e-6, dt_out
    1e-2, expm's coarse grid); in all 106 -> 87 s over the sample;
 E. (between rules 2 and 3, session 18) a linear model of at least
-   ``EXPLICIT_STATES_MIN`` ODE states (``EXPLICIT_STATES_MIN_LOOSE`` at an
+   ``EXPLICIT_STATES_MIN`` ODE states (``EXPLICIT_STATES_MIN_LOOSE``, 200, at an
    accuracy looser than ``EXPLICIT_TIGHT``) without friction devices whose ODE
    form is the linear one (no rigid links or gears with constraints), whose
    dg/du tops out in lightly damped oscillation and whose explicit run fits
@@ -188,14 +188,16 @@ NATIVE_EXPM_POWER = 1.43
 #: won every measured cell: chains of 30 inertias 1.5-5x, random trees of 50 inertias 1.1-2x) ...
 EXPLICIT = "dop853"
 EXPLICIT_STATES_MIN = 150
-#: ... and at an accuracy looser than EXPLICIT_TIGHT at least EXPLICIT_STATES_MIN_LOOSE: at 1e-3 a native ida step
-#: is cheap enough that it matched dop853 at 200-300 states (both under the contract, interleaved, medians of 5: the
-#: chain of 100 inertias 10.6 against 11.7 ms, of 150 16.0 against 12.8, a train of 150 cars 28.9 against 35.8, of
-#: 100 19.3 against 18.5), although random trees of 100 and 150 inertias went 4-9x faster with dop853; at 1e-4 and
-#: tighter dop853 was faster on all six (0.17-0.91x ida's time). From 400 states (a tree of 200 inertias, the chain
-#: of 300) dop853 won at 1e-3 too. Between 1e-4 and 1e-3 not measured
+#: ... and at an accuracy looser than EXPLICIT_TIGHT at least EXPLICIT_STATES_MIN_LOOSE. Session 18 (400 states): at
+#: 1e-3 a native ida step was cheap enough that it matched dop853 at 200-300 states (both under the contract,
+#: interleaved, medians of 5: the chain of 100 inertias 10.6 against 11.7 ms, of 150 16.0 against 12.8, a train of
+#: 150 cars 28.9 against 35.8, of 100 19.3 against 18.5), although random trees of 100 and 150 inertias went 4-9x
+#: faster with dop853. Session 19 (200 states): with a step's stages in one compiled call (``OdeProblem.stage_sweep``)
+#: dop853's pair at 1e-3 took 0.70 (chain of 100), 0.68 (chain of 150), 0.17 and 0.08 (trees of 100 and 150) and
+#: 0.91 (train of 100) times native ida's, and 1.19 on the train of 150 (``bench_auto_rules.py --boundary``, medians
+#: of 5 and 8, interleaved, on a machine loaded by a test suite and a fuzz campaign); at 1e-4 and tighter 0.12-0.78
 EXPLICIT_TIGHT = 1e-4
-EXPLICIT_STATES_MIN_LOOSE = 400
+EXPLICIT_STATES_MIN_LOOSE = 200
 #: rule E': ``expm`` before the explicit method when the explicit pair's steps are more than EXPM_FIRST_RATIO times
 #: expm's, the output grid's interval at most EXPM_FIRST_H_RHO times the fastest rate's time scale 1 / rho (a
 #: coarser grid made expm's first run fail its estimate and retry at a step of 2e-5 to 5e-3 s: random trees of 200,
