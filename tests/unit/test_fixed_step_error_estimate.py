@@ -212,10 +212,11 @@ def test_expm_round_off_bound_covers_the_error_against_a_30_digit_answer(ratio):
 def test_expm_estimate_follows_the_input_hold_error():
     # a sine torque held by its midpoint value (order_p = 1): the estimate assumes the guaranteed order 1, the
     # midpoint rule reaches order 2 on smooth forcing, so the estimate is (2^2 - 1) / (2^1 - 1) = 3 times the
-    # error: on the safe side, never below it
-    from regmech.signals import Sine
+    # error: on the safe side, never below it (a user's function: a Sine would be taken exactly by its particular
+    # solution, with no hold error at all)
+    import math
     m = oscillator()
-    drive = m.add(Torque("drive", tau=Sine(amplitude=50.0, freq_hz=3.0)))
+    drive = m.add(Torque("drive", tau=lambda t: 50.0 * math.sin(2 * math.pi * 3.0 * t)))
     m.connect(drive.support, m["fixed"].flange)
     m.connect(drive.flange, m["J"].flange_a)
     ref = m.simulate(T_END, DT_OUT, solver="scipy:DOP853", rtol=1e-12, atol=1e-14)
@@ -293,10 +294,11 @@ def test_expm_suggests_its_step_with_the_order_it_shows(h, tol):
     against the step its error goes as h^4. The step suggested after a refusal used the order 2 and overshot:
     the default call on a 1,000-inertia chain at accuracy 1e-6 ended at an estimate of 2.9e-10 (2,500 steps
     where 600 do); here the estimates were 2.4e-3 to 2.9e-5 of tol. With the order observed between the
-    runs at h, 2h and 4h (at most 2 order_p) the suggested step meets tol with its estimate above tol / 100."""
-    from regmech.signals import Sine
+    runs at h, 2h and 4h (at most 2 order_p) the suggested step meets tol with its estimate above tol / 100 (a
+    user's function: a Sine would be exact)."""
+    import math
     m = oscillator()
-    drive = m.add(Torque("drive", tau=Sine(amplitude=5.0, freq_hz=0.5)))
+    drive = m.add(Torque("drive", tau=lambda t: 5.0 * math.sin(math.pi * t)))
     m.connect(drive.flange, m["J"].flange_a)
     with pytest.raises(AccuracyError) as info:
         m.simulate(4.0, 0.1, solver="expm", h=h, tol=tol)
