@@ -108,22 +108,30 @@ def test_spectral_bound_is_an_upper_bound(name):
 
 
 def test_up_front_check_decides_by_the_exact_radius_near_its_line():
-    # chain30: exact radius ~196 1/s, bound ~201; DOP853 is stable for h rho up to 6, so over 1 s the
-    # check refuses when max_steps < rho / 6: with 33 the line (198) lies between radius and bound, and
-    # the run must start (it then meets the step count); with 30 (180) it is refused before the first step
+    # chain30: exact radius ~196 1/s, bound ~201; DOP853 steps up to its cap, h rho <= reach (2.28 at its default
+    # rtol 1e-6: scipy_ivp.stability_cap), so over 1 s the check refuses when max_steps < rho / reach: with the
+    # line between radius and bound the run must start (no up-front refusal), below the radius it is refused
+    # before the first step
+    import math
+    from regmech.solvers.scipy_ivp import stability_cap
     c = chain(30).compile()
     problem, u = start(c)
     J = od.ode_jacobian(problem, 0.0, u)
     exact = float(np.max(np.abs(np.linalg.eigvals(J.toarray()))))
     bound = od.spectral_bound(J, c)
-    assert exact < 6 * 33 < bound
+    reach = stability_cap("DOP853", 1.0, 1e-6)
+    between = math.floor(bound / reach)
+    assert exact < between * reach < bound
     m = chain(30)
+    try:
+        m.simulate(1.0, 0.01, solver="scipy:DOP853", max_steps=between)
+    except rm.SimulationError as exc:
+        assert f"took more than max_steps={between}" in str(exc)
+    below = math.floor(exact / reach) - 3
     with pytest.raises(rm.SimulationError) as err:
-        m.simulate(1.0, 0.01, solver="scipy:DOP853", max_steps=33)
-    assert "took more than max_steps=33" in str(err.value)
-    with pytest.raises(rm.SimulationError) as err:
-        m.simulate(1.0, 0.01, solver="scipy:DOP853", max_steps=30)
+        m.simulate(1.0, 0.01, solver="scipy:DOP853", max_steps=below)
     assert "limits this explicit method" in str(err.value) and "stiff for an explicit method" in str(err.value)
+    assert "cap on DOP853" in str(err.value)
 
 
 def test_spectral_radius_of_a_large_model_is_bounded_work():

@@ -44,7 +44,7 @@ def test_explicit_method_held_by_the_tolerance_is_told_so():
 def test_the_highest_order_method_is_not_sent_to_itself(solver):
     model, _ = undamped_chain()
     with pytest.raises(rm.SimulationError) as err:
-        model.simulate(20.0, dt_out=0.1, solver=solver, rtol=1e-10, max_steps=100)
+        model.simulate(20.0, dt_out=0.1, solver=solver, rtol=1e-10, max_steps=1000)
     msg = str(err.value)
     assert "set by the tolerance" in msg and "higher-order method" not in msg and "raise max_steps" in msg
 
@@ -192,3 +192,20 @@ def test_dop853_error_falls_with_rtol_on_a_forced_stiff_lightly_damped_pair(solv
         res = m.simulate(2.0, 1e-3, solver=solver, rtol=rtol)           # regmech's dop853 has the same cap
         err = np.max(np.abs(res["J1.w"] - ref["J1.w"])) / np.ptp(ref["J1.w"])
         assert err <= 2 * rtol, (rtol, err)
+
+
+@pytest.mark.parametrize("solver", ["scipy:DOP853", "dop853"])
+def test_dop853_is_refused_up_front_by_its_cap_not_after_its_steps(solver):
+    # a fuzz model at rest on a 4e8 N m/rad spring (rho 2e4 1/s): at rtol 1e-8 DOP853's cap is h rho <= 1.28, so the
+    # run needs 15,600 steps; the up-front check counted at the stability limit 6 (3,300 steps) and let it take
+    # its 12,000 steps before the step count stopped it
+    m = rm.Model("at_rest")
+    J, s, f = m.add(rm.components.Inertia("J", J=1.0)), m.add(rm.components.Spring("s", c=4e8)), \
+        m.add(rm.components.Fixed("fixed"))
+    m.connect(s.flange_a, J.flange_a)
+    m.connect(s.flange_b, f.flange)
+    with pytest.raises(rm.SimulationError) as err:
+        m.simulate(1.0, dt_out=1e-3, solver=solver, rtol=1e-8)
+    msg = str(err.value)
+    assert "limits this explicit method" in msg and "cap on DOP853" in msg and "took more than" not in msg
+    assert "Spring 's'" in msg

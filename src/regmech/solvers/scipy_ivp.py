@@ -318,20 +318,26 @@ def stability_cap(method, rho, rtol=None):
     return STABLE_CAP * scale * EXPLICIT_STABILITY[method] / rho
 
 
-def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps):
-    """An explicit method needs h <= bound / rho: refuse up front when that takes more than max_steps (rho
-    exact near the line, an upper bound far below it: ``ode_driver.spectral_radius``)."""
+def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps, rtol=None):
+    """An explicit method needs h <= bound / rho (a capped one ``stability_cap``, the step it will take at most):
+    refuse up front when that takes more than max_steps (rho exact near the line, an upper bound far below it:
+    ``ode_driver.spectral_radius``)."""
     from .ode_driver import spectral_radius, stiff_equation_hint
+    # h rho allowed: the stability limit, or for DOP853 its cap at this rtol, which it never steps beyond (counting
+    # at the limit let a run take its 12,000 steps, 10 s, before the step count stopped it: a 4e8 N m/rad spring)
+    reach = stability_cap(method, 1.0, rtol) or EXPLICIT_STABILITY[method]
     # only rho > limit matters: a cheap upper bound settles the usual case (see ode_driver.spectral_radius)
-    limit = max_steps * EXPLICIT_STABILITY[method] / (t_end - t0)
+    limit = max_steps * reach / (t_end - t0)
     rho = spectral_radius(problem, t0, u0, above=limit)
     if not rho:
         return rho
-    needed = (t_end - t0) * rho / EXPLICIT_STABILITY[method]
+    needed = (t_end - t0) * rho / reach
     if needed > max_steps:
+        capped = (f" (regmech's cap on {method}, {reach / EXPLICIT_STABILITY[method]:.2g} of its stability limit at this "
+                  f"rtol: scipy_ivp.stability_cap)" if method in CAPPED else "")
         raise SimulationError(
             f"solver '{name}' on model '{problem.c.model.name}': the Jacobian's spectral radius {rho:.3g} 1/s limits "
-            f"this explicit method to steps below {EXPLICIT_STABILITY[method] / rho:.3g} s, about {needed:.3g} steps "
+            f"this explicit method to steps below {reach / rho:.3g} s{capped}, about {needed:.3g} steps "
             f"for the run, more than max_steps={max_steps}: the model is stiff for an explicit method (or the run "
             f"is long: {(t_end - t0) * rho / (2 * np.pi):.3g} periods of its fastest motion). Use 'ida', "
             f"'scipy:Radau', 'scipy:BDF' or 'convolution' for a stiff model, or raise max_steps for a long run."
@@ -385,7 +391,7 @@ def _scipy_solver(method, name=None, cls=None):
             if method in EXPLICIT_STABILITY and not start_radius:
                 # the radius at the start (exact up to 40 states, else an upper bound unless near the limit)
                 # serves both the refusal and the step cap of every segment
-                start_radius.append(_refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps))
+                start_radius.append(_refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps, rtol))
             step_opts = dict(options)
             if "first_step" in step_opts:
                 step_opts["first_step"] = min(step_opts["first_step"], t_bound - t0)
