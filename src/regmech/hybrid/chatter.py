@@ -22,8 +22,12 @@ class ChatterGuard:
     settle it, and the run would otherwise crawl on at the event rate.
     """
 
-    def __init__(self, window: float, count: int):
+    def __init__(self, window: float, count: int, devices=(), solver: str | None = None):
         self.window, self.count = window, count
+        # for the messages: what each device is (a hard stop's remedies are not a clutch's) and which solver runs
+        # (it is not sent to itself)
+        self.impacts = {d.name for d in devices if getattr(d, "impact", False)}
+        self.solver = solver
         self.log: dict[str, deque[float]] = {}
         self.changes = 0                      # mode changes recorded over the run
         self.silent: dict[str, int] = {}      # event-function crossings that changed no mode, per device
@@ -36,12 +40,21 @@ class ChatterGuard:
         0.02632 s (10 s of computing at rtol 1e-8), while DOP853 took the whole 1.18 s run in 0.15 s."""
         n = self.silent[name] = self.silent.get(name, 0) + 1
         if n > max(SILENT_MIN, SILENT_PER_CHANGE * self.changes):
+            others = self._others()
+            use = (f"Use solver={others} (they locate the device's events on their own steps), or add"
+                   if others else "Add")
             raise ChatteringError(
-                f"the event function of friction device '{name}' crossed zero {n} times without a change of mode "
+                f"the event function of {self._what(name)} crossed zero {n} times without a change of mode "
                 f"(last at t={t:.9g} s; {self.changes} mode changes in the run): it crosses at round-off and the "
-                f"solver restarts at every crossing, so the run would crawl. Use solver='scipy:DOP853' or "
-                f"'scipy:Radau' (they locate the device's events on their own steps), or add compliance or damping "
+                f"solver restarts at every crossing, so the run would crawl. {use} compliance or damping "
                 f"next to it (an elastic shaft).")
+
+    def _what(self, name: str) -> str:
+        return f"hard stop '{name}'" if name in self.impacts else f"friction device '{name}'"
+
+    def _others(self) -> str:
+        """The event-locating ODE-form solvers to suggest, without the one that runs."""
+        return " or ".join(f"'{s}'" for s in ("scipy:DOP853", "scipy:Radau") if s != self.solver)
 
     def record_settle(self, t: float, changes, crossed, devices) -> None:
         """What the mode logic did at an event: each change (``record``), or, when it changed nothing, each
@@ -61,8 +74,13 @@ class ChatterGuard:
         while times and times[0] < t - self.window:
             times.popleft()
         if len(times) >= self.count:
+            if name in self.impacts:
+                remedies = ("a lower coefficient of restitution e (the Zeno rule then holds the contact after fewer "
+                            "rebounds), a compliant stop instead of a rigid one (EndStop, ElastoGap), or realistic "
+                            "inertia on both sides")
+            else:
+                remedies = ("add damping or compliance next to it (an elastic shaft), use peak > 1 (static above "
+                            "kinetic friction), or give the masses on both sides realistic inertia")
             raise ChatteringError(
-                f"friction device '{name}' changed mode {len(times)} times within {self.window:g} s before "
-                f"t={t:.9g} (chattering): the stick/slip logic cannot settle. Remedies: add damping or compliance "
-                f"next to it (an elastic shaft), use peak > 1 (static above kinetic friction), or give the masses "
-                f"on both sides realistic inertia.")
+                f"{self._what(name)} changed mode {len(times)} times within {self.window:g} s before "
+                f"t={t:.9g} (chattering): its mode logic cannot settle. Remedies: {remedies}.")

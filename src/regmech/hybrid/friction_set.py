@@ -30,5 +30,5 @@ class FrictionSet(ModeLogic, EventFunctions, Holding, Impacts, GearSides, Fricti
         fs._law_memo = {}         # ModeLogic._law (per settle)
         return fs
 
-    def chatter_guard(self, window=None, count=50):
-        return ChatterGuard(1e-6 if window is None else window, count)
+    def chatter_guard(self, window=None, count=50, solver=None):
+        return ChatterGuard(1e-6 if window is None else window, count, self.devices, solver)

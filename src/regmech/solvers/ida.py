@@ -427,7 +427,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     t = t_start
     bp_iter = iter(bps + [t_end])
     t_stop = next(bp_iter)
-    guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
+    guard = fr.chatter_guard(chatter_window, chatter_count, "ida") if fr else None
     k_max = float(np.abs(c.stiffness_estimate()).max(initial=0.0)) if c.Sc.shape[0] else 0.0
     # a link so much stiffer than the rest that its force's round-off (eps * spread) exceeds
     # the tolerance: Newton and the error test then fail over and over and IDA crawls

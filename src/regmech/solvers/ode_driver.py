@@ -1489,7 +1489,7 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
         surf.reset()
     guards = guards_for(c)
     watch = EventWatch(c, guards, shortest_period(model)) if guards is not None else None
-    guard = fr.chatter_guard(chatter_window, chatter_count) if fr else None
+    guard = fr.chatter_guard(chatter_window, chatter_count, name) if fr else None
     # a compiled right-hand side (numba loaded) gets the divergence test's per-step pass compiled too
     growth = GrowthWatch(t_start, u, max_growth, compiled=out.linear and out.form._native is not None)
     growth.verdict = RoughVerdict()
