@@ -33,8 +33,8 @@ import scipy.linalg as la
 import scipy.sparse as sp
 
 import regmech as rm
-from regmech.components import (Backlash, Clutch, Fixed, FrictionContact, Inertia, Mass, Position, Speed, Spring,
-                                SpringDamper, Torque)
+from regmech.components import (Backlash, Clutch, Fixed, Force, FrictionContact, Inertia, Mass, Position, Speed,
+                                Spring, SpringDamper, Torque)
 from regmech.errors import ParameterError, SimulationError
 from regmech.signals import Ramp, Signal, Sine, Step
 from regmech.solvers.expm import nonlinear_components
@@ -320,7 +320,7 @@ def test_sine_forcing_is_exact_at_any_step():
     names = ["J0.w", "J1.w", "J0.phi", "J1.phi"]
     for p in (1, 2):
         r = m.simulate(2.0, dt_out=0.1, solver="expm", order_p=p)
-        assert r.stats.extra.get("steps", len(r.t) - 1) <= 20
+        assert r.stats.steps == 20                      # one step per output interval: no fit error to resolve
         assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= 1e-10
 
 
@@ -556,3 +556,72 @@ def test_roundoff_check_on_a_stretched_spectrum():
     for r in rows:
         # measured: ~1e-11; the floor of a ratio-1e3 spectrum is ~(w_max/w_min)^2 * 1e-16 = 1e-10
         assert r["err_phi"] <= 1e-9 and r["err_w"] <= 1e-9, r
+
+
+def test_only_a_library_source_of_a_sine_is_taken_as_one():
+    # review of session 19: a sampled test took a user's smooth function with a narrow bump between its samples for
+    # a constant once the model held a Sine elsewhere, and dropped the bump (0.14 of the range off, estimate 3e-14).
+    # Now only a Torque/Force of a Sine is taken exactly; the function keeps the fit and its estimate sees the bump
+    J, c = np.array([1.0, 1.0, 1.0]), np.array([1e2, 1e2, 1e2])
+    m = chain_model(J, c, d=[0.1, 0.1, 0.1], drive=Sine(amplitude=3.0, freq_hz=1.0))
+    bump = m.add(Torque("bump", tau=lambda t: 1.0 + 5.0 * math.exp(-((t - 1.0) / 0.01) ** 2)))
+    m.connect(bump.flange, m["J0"].flange_b)
+    m.connect(bump.support, m["fixed"].flange)
+    ref = m.simulate(2.0, dt_out=1e-2, solver="scipy:DOP853", rtol=1e-12, atol=1e-14)
+    names = ["J0.w", "J1.w", "J2.w"]
+    want = np.column_stack([ref[nm] for nm in names])
+    try:
+        r = m.simulate(2.0, dt_out=1e-2, solver="expm", accuracy=1e-6)
+    except rm.AccuracyError:
+        return                                   # refused: no wrong answer
+    assert rel_error(r, names, want) <= 1e-6
+
+
+def test_tiny_sines_that_start_apart_are_not_confused():
+    # review of session 19: the particular solutions were cached under amplitudes rounded to 1e-12, so that on a
+    # model scaled by 1e-13 a sine starting at 0.5 s reused the solution of the segment before it (0.26 off)
+    sc = 1e-13
+    m = rm.Model("nano")
+    f = m.add(Fixed("fixed", domain="translational"))
+    M0, M1 = m.add(Mass("M0", m=2.0 * sc)), m.add(Mass("M1", m=0.7 * sc))
+    s0 = m.add(SpringDamper("s0", c=1e3 * sc, d=1.0 * sc, domain="translational"))
+    s1 = m.add(SpringDamper("s1", c=4e3 * sc, d=0.5 * sc, domain="translational"))
+    F1 = m.add(Force("F1", f=Sine(amplitude=3.0 * sc, freq_hz=6.0, offset=sc)))
+    F2 = m.add(Force("F2", f=Sine(amplitude=2.0 * sc, freq_hz=6.0, phase=1.0, offset=2.0 * sc, start_time=0.5)))
+    m.connect(f.flange, s0.flange_a)
+    m.connect(s0.flange_b, M0.flange_a)
+    m.connect(M0.flange_b, s1.flange_a)
+    m.connect(s1.flange_b, M1.flange_a)
+    m.connect(F1.flange, M1.flange_b)
+    m.connect(F2.flange, M0.flange_b)
+    ref = m.simulate(2.0, 0.01, solver="scipy:DOP853", rtol=1e-13, atol=1e-15 * sc, max_steps=10**6)
+    names = ["M0.v", "M1.v", "M0.s", "M1.s"]
+    r = m.simulate(2.0, 0.01, solver="expm")
+    assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= 1e-9
+
+
+def test_sines_through_clutch_events_meet_tight_accuracies():
+    # review of session 19: each stepper restarted at a located clutch event decided anew whether its (short) span
+    # showed a sine, so the runs at h, 2h and 4h mixed exact and fitted spans and the contract refused 1e-5 to 1e-9
+    from regmech.components import Clutch
+    m = rm.Model("clutched")
+    f = m.add(Fixed("fixed"))
+    J0, J1, J2 = m.add(Inertia("J0", J=1.0)), m.add(Inertia("J1", J=0.5)), m.add(Inertia("J2", J=0.3))
+    s0, s1 = m.add(SpringDamper("s0", c=200.0, d=0.5)), m.add(SpringDamper("s1", c=800.0, d=0.3))
+    cl = m.add(Clutch("cl", mu=0.4, fn_max=10.0, f_normalized=1.0, peak=1.2))
+    src = m.add(Torque("drive", tau=Sine(amplitude=12.0, freq_hz=1.5, offset=0.5)))
+    src2 = m.add(Torque("drive2", tau=Sine(amplitude=3.0, freq_hz=2.5, start_time=0.3)))
+    m.connect(f.flange, s0.flange_a)
+    m.connect(s0.flange_b, J0.flange_a)
+    m.connect(J0.flange_b, cl.flange_a)
+    m.connect(cl.flange_b, J1.flange_a)
+    m.connect(J1.flange_b, s1.flange_a)
+    m.connect(s1.flange_b, J2.flange_a)
+    m.connect(src.flange, J2.flange_b)
+    m.connect(src2.flange, J0.flange_b)
+    ref = m.simulate(3.0, 0.05, solver="scipy:DOP853", rtol=1e-13, atol=1e-15, max_steps=10**6)
+    assert ref.events
+    names = ["J0.w", "J1.w", "J2.w", "J0.phi", "J2.phi"]
+    for acc in (1e-5, 1e-9):
+        r = m.simulate(3.0, 0.05, solver="expm", accuracy=acc)
+        assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= acc

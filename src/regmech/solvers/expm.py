@@ -46,9 +46,9 @@ is integrated exactly, at any step size, to the round-off floor; another
 smooth one (a user's function) with the order of the Gauss fit (2p for slow
 forcing).
 
-Sinusoidal device forces (a ``Torque`` or ``Force`` of a ``Sine``, found by
-an exact fit of their sampled values to the model's sine frequencies,
-``Forcing.sinusoids``, per segment) are exact too: their particular solution
+Sinusoidal device forces (a library ``Torque`` or ``Force`` of a ``Sine``,
+``Forcing._sine_rows``, on the segments of time events where the sine is on)
+are exact too: their particular solution
 ``q_p(t) = Re(sum_f Z_f e^{i w_f t})``, ``(i w_f I - A) Z_f = W c_f``, is
 taken out of the state before a step and put back after it
 (``ExpmStepper.particular``), so the polynomial fit carries only the rest.
@@ -59,10 +59,10 @@ random tree of 113 inertias with modes of 651-697 Hz at damping ratios near
 1e-3, a 5.3 Hz sine torque, 10 ms output: at 6 and 7 steps an interval the
 error was 14-23 times the estimate, and accuracy 3e-5 came back 1.4e-4
 off; with the particular solution every step count is within 6e-10 of the
-reference). The fit is made per segment (between breakpoints), so a sine
-that starts inside the run is exact from its start; a sine motion of a
-``Position``/``Speed`` source and a forcing frequency within 1e-8 of an
-undamped mode keep the polynomial fit.
+reference). A sine that starts inside the run is exact from its start (its
+start is a time event). A sine motion of a ``Position``/``Speed`` source, a
+user's function or signal class, and a forcing frequency within 1e-5 of an
+undamped mode (``SINE_RESONANCE_LIMIT``) keep the polynomial fit.
 
 Storage: dense D0 for small models; above ``SPARSE_FROM`` independent
 coordinates (and a diagonal mass matrix) E = D0 - I is a scipy CSR matrix
@@ -161,18 +161,14 @@ SUB_CACHE_SIZE = 24
 SUB_CACHE_UPTO = 400
 #: Gauss-Legendre points for integrating a prescribed speed to a displacement
 SPEED_QUADRATURE = 8
-#: a device force is taken as exactly ``beta + sum_f (alpha_f sin w_f t + gamma_f cos w_f t)`` over the model's sine
-#: frequencies w_f (``Forcing.sinusoids``) when that fits its values at SINE_SAMPLES_PER_TERM samples per term of the
-#: basis to SINE_FIT_TOL of their size, and a second, shifted set of samples as closely
-SINE_SAMPLES_PER_TERM = 4
+#: a library Torque or Force of a Sine is taken exactly (``Forcing._sine_rows``) when its row is affine in the signal
+#: to this fraction of its size at three instants
 SINE_FIT_TOL = 1e-10
-#: ... on samples whose basis matrix has a condition number up to this (a segment much shorter than a period leaves
-#: the sines nearly polynomial there, and their coefficients ill-determined)
-SINE_FIT_COND = 1e6
 #: ... and its particular solution is used unless the forcing frequency is so close to an undamped mode that the
 #: response amplifies the forcing beyond this (``ModeSystem.sine_response``: the particular and the homogeneous parts
-#: would then cancel in round-off)
-SINE_RESONANCE_LIMIT = 1e8
+#: then cancel, leaving about eps times the amplification, which the pair of Richardson runs shares: a review
+#: measured 3-6 times the estimate at 1e7-1e8; the polynomial fit takes such a force)
+SINE_RESONANCE_LIMIT = 1e5
 #: their nodes and weights on [-1, 1] (computed once: numpy's leggauss costs ~0.1 ms a call)
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(SPEED_QUADRATURE)
 _GL_NODES01 = 0.5 * (_GL_X + 1.0)
@@ -405,60 +401,56 @@ class Forcing:
         self.n_dep = len(self.dep_used)
         self.ng = ng
         self.modes = np.asarray(modes, int)
+        self.sine_rows = self._sine_rows() if len(self.varying_rows) else []
 
-    def sinusoids(self, t0, t1):
-        """The time-varying device forces that are sinusoids of the model's ``Sine`` frequencies on ``[t0, t1]`` (a
-        segment: no breakpoint inside):
-        ``(entries, beta, coef, omegas)`` with ``entries`` their places in ``values``, ``beta`` their constant
-        parts and ``coef[k, f] = gamma_kf - i alpha_kf`` (so the force is ``beta_k + Re(coef_kf e^{i w_f t})``),
-        or None. Found by a least-squares fit of sampled values (a source's law is opaque here): kept only where
-        the fit is exact to ``SINE_FIT_TOL`` on two sets of samples; a table or a user's function fails it and keeps
-        the polynomial fit of the step (module docstring)."""
-        if not len(self.varying_rows):
-            return None
+    def _sine_rows(self) -> list:
+        """``[(entry, sine, sigma, kappa)]``: the time-varying device forces that are a library ``Torque`` or
+        ``Force`` of a ``Sine`` (their law is affine in the signal: the row's value is ``kappa + sigma s(t)``), with
+        their place in ``values``. Decided from the model, not from sampled values: a sampled test cannot see a
+        user's function that departs from a sine between its samples (a review found a narrow bump lost that way).
+        ``sigma`` and ``kappa`` come from the row at three instants a quarter period apart (the two farthest apart
+        in the signal give them, the third checks them)."""
+        from ..components.sources import Force, Torque
         from ..signals import Sine
-        from .common import model_signals
-        omegas = sorted({2.0 * math.pi * abs(sg.freq_hz) for sg in model_signals(self.c.model, self.c)
-                         if isinstance(sg, Sine) and sg.freq_hz != 0.0 and sg.amplitude != 0.0})
-        if not omegas or not t1 > t0:
-            return None
-        w = np.asarray(omegas)
-        m = 1 + 2 * len(w)
-        n_s = SINE_SAMPLES_PER_TERM * m + 4
+        out = []
+        for g, zeros, start in self.varying_groups:
+            if g.tpl.k != 1:
+                continue
+            for i, dev in enumerate(g.devices):
+                if type(dev) not in (Torque, Force):
+                    continue
+                sig = dev._values.get("tau" if type(dev) is Torque else "f")
+                if type(sig) is not Sine or sig.amplitude == 0.0 or sig.freq_hz == 0.0:
+                    continue
+                ts = sig.start_time + np.array([0.1, 0.35, 0.6]) / abs(sig.freq_hz)
+                sv = np.array([sig.value(float(t)) for t in ts])
+                rv = np.array([self._offsets(g, zeros, float(t), False)[0][i] for t in ts])
+                a, b = max(((0, 1), (0, 2), (1, 2)), key=lambda ab: abs(sv[ab[1]] - sv[ab[0]]))
+                sigma = (rv[b] - rv[a]) / (sv[b] - sv[a])
+                kappa = rv[a] - sigma * sv[a]
+                if np.all(np.isfinite([sigma, kappa])) and \
+                        np.all(np.abs(kappa + sigma * sv - rv) <= SINE_FIT_TOL * np.max(np.abs(rv))):
+                    out.append((1 + self.n_dep + start + i, sig, float(sigma), float(kappa)))
+        return out
 
-        def basis(ts):
-            return np.hstack([np.ones((len(ts), 1)), np.sin(np.outer(ts, w)), np.cos(np.outer(ts, w))])
-
-        def sampled(ts):
-            out = np.empty((len(ts), len(self.varying_rows)))
-            for i, t in enumerate(ts):
-                for g, zeros, start in self.varying_groups:
-                    offs = self._offsets(g, zeros, float(t), t >= t1)        # left limit at the segment's end
-                    out[i, start:start + offs.size] = offs.ravel()
-            return out
-        golden = (math.sqrt(5.0) - 1.0) / 2.0
-        fits = []
-        for shift in (0.0, 0.5):
-            u = np.mod(shift + golden * np.arange(n_s), 1.0)
-            u[0] = 0.0 if shift == 0.0 else 1.0
-            ts = t0 + (t1 - t0) * u
-            fits.append((basis(ts), sampled(ts)))
-        with np.errstate(all="ignore"):
-            X, V = fits[0]
-            if not np.linalg.cond(X) <= SINE_FIT_COND:
-                return None             # a segment too short to tell the sines from a polynomial: the fit does it
-            cf, *_ = np.linalg.lstsq(X, V, rcond=None)
-            exact = np.ones(V.shape[1], bool)
-            for X, V in fits:
-                size = np.max(np.abs(V), axis=0)
-                exact &= np.all(np.abs(X @ cf - V) <= SINE_FIT_TOL * np.maximum(size, 1e-300), axis=0)
-        exact &= np.any(np.abs(cf[1:]) > 0.0, axis=0) & np.all(np.isfinite(cf), axis=0)
-        if not exact.any():
+    def sinusoids(self, t):
+        """The sinusoidal device forces (``_sine_rows``) on the segment of time events that holds ``t`` (a sine is
+        on or off for the whole of it: its start is a breakpoint): ``(entries, beta, coef, omegas)`` with
+        ``entries`` their places in ``values``, ``beta`` their constant parts and ``coef[k, f]`` their complex
+        amplitudes (the force is ``beta_k + Re(coef_kf e^{i w_f t})``), or None. ``offset + A sin(w (t - t_s) +
+        phi)`` is ``Re(-i A e^{i psi} e^{i w t})`` with ``psi = phi - w t_s``."""
+        on = [(e, sg, sigma, kappa) for e, sg, sigma, kappa in self.sine_rows if sg._on(t, False)]
+        if not on:
             return None
-        k = np.nonzero(exact)[0]
-        F = len(w)
-        alpha, gamma = cf[1:1 + F, k].T, cf[1 + F:, k].T            # (k, F)
-        return 1 + self.n_dep + k, cf[0, k].copy(), gamma - 1j * alpha, w
+        w = np.array(sorted({2.0 * math.pi * sg.freq_hz for _, sg, _, _ in on}))
+        coef = np.zeros((len(on), len(w)), complex)
+        beta = np.empty(len(on))
+        for k, (e, sg, sigma, kappa) in enumerate(on):
+            wk = 2.0 * math.pi * sg.freq_hz
+            psi = sg.phase - wk * sg.start_time
+            coef[k, int(np.searchsorted(w, wk))] = sigma * (-1j) * sg.amplitude * np.exp(1j * psi)
+            beta[k] = kappa + sigma * sg.offset
+        return np.array([e for e, *_ in on], int), beta, coef, w
 
     @staticmethod
     def _offsets(g, zeros, t, left):
@@ -623,15 +615,12 @@ class ModeSystem:
         """``(Z, omegas)``: the particular solution ``q_p(t) = Re(sum_f Z_f e^{i w_f t})`` of ``q' = A q + b(t)`` for
         the sinusoidal device forces ``sine`` of a segment (``Forcing.sinusoids``): ``(i w_f I - A) Z_f = sum_k W_k
         coef_kf``, kept for the next segment with the same forces. Or None (no such force, or a forcing frequency
-        within 1 / ``SINE_RESONANCE_LIMIT`` of an undamped mode): the step's polynomial fit then carries them. Why: the fit's error, a ripple at the step rate, excites
-        lightly damped modes near that rate and its harmonics, and a run and its companion at 2h can ring alike,
-        so that their difference missed it (session 19: a random tree of 113 inertias, modes 651-697 Hz with damping
-        ratios near 1e-3, a 5.3 Hz sine torque, dt_out 10 ms: at 6 and 7 steps per output interval the error was
-        14-23 times the estimate, and accuracy 3e-5 was returned 1.4e-4 off)."""
+        within 1 / ``SINE_RESONANCE_LIMIT`` of an undamped mode): the step's polynomial fit then carries them (why
+        the particular solution: the module docstring)."""
         if sine is None or not self.N:
             return None
         entries, beta, coef, w = sine
-        key = (entries.tobytes(), np.round(coef, 12).tobytes(), w.tobytes())
+        key = (entries.tobytes(), coef.tobytes(), w.tobytes())
         if key not in self._sine_cache:
             if len(self._sine_cache) >= CACHE_SIZE:
                 self._sine_cache.pop(next(iter(self._sine_cache)))
@@ -815,7 +804,7 @@ class ExpmStepper(Stepper):
         self.clock = clock(t0, knots, t_bound, h)
         self.fixed_step = float(h)
         # the segment's sinusoidal device forces, exact through their particular solution (``ModeSystem.sine_response``)
-        sine = fo.sinusoids(float(t0), float(t_bound))
+        sine = fo.sinusoids(float(t0))
         response = ms.sine_response(sine)
         self._sine = None if response is None else (response[0], response[1], sine[0], sine[1])
         self.nsteps = self.nrejected = self.njev = 0

@@ -211,7 +211,8 @@ class ScipyStepper(Stepper):
                 # LSODA's Fortran failures arrive as a UserWarning before the failed status that is reported below
                 # as a regmech error (the warning would only repeat it, pointing into scipy)
                 with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", UserWarning)
+                    # LSODA's own message only (scipy's ode wrapper: "lsoda: ..."); a user's signal may warn too
+                    warnings.filterwarnings("ignore", message="lsoda", category=UserWarning)
                     msg = self.solver.step()
             else:
                 msg = self.solver.step()
