@@ -15,6 +15,9 @@ class Torque(Device):
 
     kind = "compliant"
     is_source = True
+    #: the parameter whose signal is the device's law itself (the law is that signal and nothing else): a solver may
+    #: take a sinusoidal one exactly (``solvers.expm``); read from this class only, not from a subclass
+    force_signal = "tau"
     tau = Param(check="signal", unit="N m", doc="driving torque")
     flanges = (("flange", ROTATIONAL), ("support", ROTATIONAL, True))
     rel_names = {ROTATIONAL: (None, None, None, "tau")}
@@ -32,6 +35,7 @@ class Force(Device):
 
     kind = "compliant"
     is_source = True
+    force_signal = "f"          # as Torque.force_signal
     f = Param(check="signal", unit="N", doc="driving force")
     flanges = (("flange", TRANSLATIONAL), ("support", TRANSLATIONAL, True))
     default_domain = TRANSLATIONAL

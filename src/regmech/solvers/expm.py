@@ -405,21 +405,23 @@ class Forcing:
 
     def _sine_rows(self) -> list:
         """``[(entry, sine, sigma, kappa)]``: the time-varying device forces that are a library ``Torque`` or
-        ``Force`` of a ``Sine`` (their law is affine in the signal: the row's value is ``kappa + sigma s(t)``), with
+        ``Force`` of a ``Sine`` (``force_signal``: the row's value is ``kappa + sigma s(t)``), with
         their place in ``values``. Decided from the model, not from sampled values: a sampled test cannot see a
         user's function that departs from a sine between its samples (a review found a narrow bump lost that way).
         ``sigma`` and ``kappa`` come from the row at three instants a quarter period apart (the two farthest apart
         in the signal give them, the third checks them)."""
-        from ..components.sources import Force, Torque
         from ..signals import Sine
         out = []
         for g, zeros, start in self.varying_groups:
             if g.tpl.k != 1:
                 continue
             for i, dev in enumerate(g.devices):
-                if type(dev) not in (Torque, Force):
+                # a source whose law is its signal says which parameter that is (``Torque.force_signal``), on its
+                # own class: a user's subclass may have changed the law
+                name = type(dev).__dict__.get("force_signal")
+                if name is None:
                     continue
-                sig = dev._values.get("tau" if type(dev) is Torque else "f")
+                sig = dev._values.get(name)
                 if type(sig) is not Sine or sig.amplitude == 0.0 or sig.freq_hz == 0.0:
                     continue
                 ts = sig.start_time + np.array([0.1, 0.35, 0.6]) / abs(sig.freq_hz)
