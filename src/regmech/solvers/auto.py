@@ -193,9 +193,9 @@ EXPLICIT_STATES_MIN = 150
 #: interleaved, medians of 5: the chain of 100 inertias 10.6 against 11.7 ms, of 150 16.0 against 12.8, a train of
 #: 150 cars 28.9 against 35.8, of 100 19.3 against 18.5), although random trees of 100 and 150 inertias went 4-9x
 #: faster with dop853. Session 19 (200 states): with a step's stages in one compiled call (``OdeProblem.stage_sweep``)
-#: dop853's pair at 1e-3 took 0.70 (chain of 100), 0.68 (chain of 150), 0.17 and 0.08 (trees of 100 and 150) and
-#: 0.91 (train of 100) times native ida's, and 1.19 on the train of 150 (``bench_auto_rules.py --boundary``, medians
-#: of 5 and 8, interleaved, on a machine loaded by a test suite and a fuzz campaign); at 1e-4 and tighter 0.12-0.78
+#: dop853's pair at 1e-3 took 0.71 (chain of 100), 0.51 (chain of 150), 0.16 and 0.08 (trees of 100 and 150) and
+#: 0.80 (train of 100) times native ida's, and 1.05 on the train of 150 (``bench_auto_rules.py --boundary``, medians
+#: of 5, interleaved, quiet machine; benchmarks/results/auto_rules.md); at 1e-4 and tighter 0.11-0.76
 EXPLICIT_TIGHT = 1e-4
 EXPLICIT_STATES_MIN_LOOSE = 200
 #: rule E': ``expm`` before the explicit method when the explicit pair's steps are more than EXPM_FIRST_RATIO times
