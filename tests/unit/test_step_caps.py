@@ -209,3 +209,19 @@ def test_dop853_is_refused_up_front_by_its_cap_not_after_its_steps(solver):
     msg = str(err.value)
     assert "limits this explicit method" in msg and "cap on DOP853" in msg and "took more than" not in msg
     assert "Spring 's'" in msg
+
+
+def test_a_step_held_at_dop853s_cap_is_not_called_tolerance_bound(monkeypatch):
+    # DOP853's steps never exceed regmech's cap (h rho <= 0.9 * 6 * (rtol / 1e-3)^(1/8), 1.28 at rtol 1e-8): a
+    # run stopped by its step count with its last step at the cap was told "the steps are set by the tolerance"
+    from types import SimpleNamespace
+
+    from regmech.solvers import common, ode_driver
+    cap = scipy_ivp.stability_cap("DOP853", 1.0, 1e-8)
+    budget = common.StepBudget("dop853", 10, 1.0, scipy_ivp.EXPLICIT_STABILITY["DOP853"], cap)
+    monkeypatch.setattr(ode_driver, "_spectral_radius", lambda problem, t, u: 2e4)
+    stepper = SimpleNamespace(t=0.5, t_old=0.5 - 0.99 * cap / 2e4, u=None)
+    why, stiff = budget._diagnosis(stepper, None, stepper.t - stepper.t_old)
+    assert stiff and "regmech's cap" in why and "set by the tolerance" not in why
+    why, stiff = budget._diagnosis(stepper, None, 0.3 * cap / 2e4)
+    assert not stiff and "set by the tolerance" in why

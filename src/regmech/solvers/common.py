@@ -443,13 +443,15 @@ class StepBudget:
     run costs) is measured per solver where the default is chosen.
     """
 
-    def __init__(self, name: str, max_steps: int, t_end: float, stability_bound: float | None = None):
+    def __init__(self, name: str, max_steps: int, t_end: float, stability_bound: float | None = None,
+                 cap: float | None = None):
         if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
             raise ParameterError(f"solver '{name}': max_steps must be a positive integer, got {max_steps!r}")
         self.name = name
         self.max_steps = int(max_steps)
         self.t_end = float(t_end)
         self.stability_bound = stability_bound
+        self.cap = cap          # ``h * rho`` of regmech's own cap on the method's step (DOP853), or None
         self.steps = 0
 
     def charge(self, stepper, problem) -> None:
@@ -482,6 +484,12 @@ class StepBudget:
         if not rho or h <= 0:
             return "an explicit method that needs this many steps is usually held back by stiffness", True
         ratio = h * rho / self.stability_bound
+        if self.cap is not None and h * rho >= 0.9 * self.cap:
+            more = (self.t_end - stepper.t) * rho / self.cap
+            return (f"h * rho = {h * rho:.3g} with the spectral radius rho = {rho:.3g} 1/s of the Jacobian, at "
+                    f"regmech's cap on this method's step at this rtol ({self.cap:.3g}, below its stability limit "
+                    f"{self.stability_bound:g}: scipy_ivp.stability_cap): the model is stiff for it (about "
+                    f"{more:.3g} more steps to go)"), True
         if ratio > 0.3:
             more = (self.t_end - stepper.t) * rho / self.stability_bound
             return (f"h * rho = {h * rho:.3g} with the spectral radius rho = {rho:.3g} 1/s of the Jacobian, at "

@@ -377,7 +377,7 @@ def _scipy_solver(method, name=None, cls=None):
             check_link_spread(model.compile(), rtol, name, stiff_check)
         if max_steps is None:
             max_steps = DEFAULT_MAX_STEPS[method]
-        budget = StepBudget(name, max_steps, t_end, EXPLICIT_STABILITY.get(method))
+        budget = StepBudget(name, max_steps, t_end, EXPLICIT_STABILITY.get(method), stability_cap(method, 1.0, rtol))
         atol = rtol * 1e-2 if atol is None else atol
         scales = []         # the StateScale of the run, made with the first segment (it needs the compiled model)
         options = {"rtol": rtol}
