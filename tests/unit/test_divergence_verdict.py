@@ -24,19 +24,25 @@ def test_stability_function_of_the_tableau(cls, order, limit):
     assert abs(x[np.argmax(stable)] - (-limit)) < 0.01
 
 
+def _pair(name, tau, J1, link, soft, w0=0.0):
+    """A torque ``tau`` on inertia J1 (start speed w0), a spring-damper ``link = (c, d)`` to a unit inertia J2 (J1
+    given as ``J1``), and J2 grounded by a spring of stiffness ``soft``."""
+    m = rm.Model(name)
+    ground = m.add(Fixed("ground"))
+    drive = m.add(Torque("drive", tau=tau))
+    j1, j2 = m.add(Inertia("J1", J=J1, w0=w0)), m.add(Inertia("J2", J=1.0))
+    sd, spring = m.add(SpringDamper("link", c=link[0], d=link[1])), m.add(Spring("soft", c=soft))
+    m.connect(drive.flange, j1.flange_a)
+    m.connect(j1.flange_b, sd.flange_a)
+    m.connect(sd.flange_b, j2.flange_a)
+    m.connect(j2.flange_b, spring.flange_a)
+    m.connect(spring.flange_b, ground.flange)
+    return m
+
+
 def _stiff_pair(theta):
     """A light spring-damper pair whose mode turns ``theta`` radians per step of 0.01 s, driven slowly."""
-    m = rm.Model("pair")
-    ground = m.add(Fixed("ground"))
-    drive = m.add(Torque("drive", tau=Sine(amplitude=1.0, freq_hz=1.0)))
-    J1, J2 = m.add(Inertia("J1", J=1.0, w0=1.0)), m.add(Inertia("J2", J=1.0))
-    link, soft = m.add(SpringDamper("link", c=(theta / 0.01) ** 2 / 2, d=0.01)), m.add(Spring("soft", c=10.0))
-    m.connect(drive.flange, J1.flange_a)
-    m.connect(J1.flange_b, link.flange_a)
-    m.connect(link.flange_b, J2.flange_a)
-    m.connect(J2.flange_b, soft.flange_a)
-    m.connect(soft.flange_b, ground.flange)
-    return m
+    return _pair("pair", Sine(amplitude=1.0, freq_hz=1.0), 1.0, ((theta / 0.01) ** 2 / 2, 0.01), 10.0, w0=1.0)
 
 
 def test_a_growing_oscillation_beyond_rk4s_limit_is_still_stopped_as_rough():
@@ -100,17 +106,7 @@ def test_a_nonlinear_models_jacobian_is_taken_again_once_the_run_has_moved_on(mo
 def _stepped_pair(start):
     """A light inertia on a stiff, nearly undamped link to a grounded one (a 503 Hz mode), a step torque on it."""
     from regmech.signals import Step
-    m = rm.Model("stepped_pair")
-    ground = m.add(Fixed("ground"))
-    J1, J2 = m.add(Inertia("J1", J=1e-2)), m.add(Inertia("J2", J=1.0))
-    link, soft = m.add(SpringDamper("link", c=1e5, d=1e-3)), m.add(Spring("soft", c=100.0))
-    drive = m.add(Torque("drive", tau=Step(height=10.0, start_time=start)))
-    m.connect(drive.flange, J1.flange_a)
-    m.connect(J1.flange_b, link.flange_a)
-    m.connect(link.flange_b, J2.flange_a)
-    m.connect(J2.flange_b, soft.flange_a)
-    m.connect(soft.flange_b, ground.flange)
-    return m
+    return _pair("stepped_pair", Step(height=10.0, start_time=start), 1e-2, (1e5, 1e-3), 100.0)
 
 
 @pytest.mark.parametrize("start", [0.0, 0.1234])

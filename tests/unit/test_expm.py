@@ -311,8 +311,13 @@ def test_step_and_ramp_forcing_exact_with_p2_across_breakpoints():
     assert rel_error(res, names, np.column_stack([fine[nm] for nm in names])) <= 1e-12
 
 
+def off(res, ref, names) -> float:
+    """``rel_error`` of ``res`` against the reference run ``ref`` on the signals ``names``."""
+    return rel_error(res, names, np.column_stack([ref[nm] for nm in names]))
+
+
 def test_sine_forcing_is_exact_at_any_step():
-    # a Sine torque is taken by its particular solution (ModeSystem.particular): no fit error at one step per output
+    # a Sine torque is taken by its particular solution (ExpmStepper.particular): no fit error at one step per output
     # interval, whatever the order of the fit
     J, c = np.array([1.0, 1.0]), np.array([1e2, 1e2])
     m = chain_model(J, c, d=[0.1, 0.1], drive=Sine(amplitude=3.0, freq_hz=1.0, phase=0.3, offset=0.5))
@@ -321,7 +326,7 @@ def test_sine_forcing_is_exact_at_any_step():
     for p in (1, 2):
         r = m.simulate(2.0, dt_out=0.1, solver="expm", order_p=p)
         assert r.stats.steps == 20                      # one step per output interval: no fit error to resolve
-        assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= 1e-10
+        assert off(r, ref, names) <= 1e-10
 
 
 def test_a_sine_that_starts_inside_the_run_is_exact_from_its_start():
@@ -331,7 +336,7 @@ def test_a_sine_that_starts_inside_the_run_is_exact_from_its_start():
     ref = m.simulate(2.0, dt_out=0.1, solver="scipy:DOP853", rtol=1e-13, atol=1e-14)
     names = ["J0.w", "J1.w", "J0.phi", "J1.phi"]
     r = m.simulate(2.0, dt_out=0.1, solver="expm")
-    assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= 1e-10
+    assert off(r, ref, names) <= 1e-10
 
 
 def test_sine_near_resonance_is_exact_where_the_fit_rang():
@@ -597,7 +602,7 @@ def test_tiny_sines_that_start_apart_are_not_confused():
     ref = m.simulate(2.0, 0.01, solver="scipy:DOP853", rtol=1e-13, atol=1e-15 * sc, max_steps=10**6)
     names = ["M0.v", "M1.v", "M0.s", "M1.s"]
     r = m.simulate(2.0, 0.01, solver="expm")
-    assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= 1e-9
+    assert off(r, ref, names) <= 1e-9
 
 
 def test_sines_through_clutch_events_meet_tight_accuracies():
@@ -624,7 +629,7 @@ def test_sines_through_clutch_events_meet_tight_accuracies():
     names = ["J0.w", "J1.w", "J2.w", "J0.phi", "J2.phi"]
     for acc in (1e-5, 1e-9):
         r = m.simulate(3.0, 0.05, solver="expm", accuracy=acc)
-        assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= acc
+        assert off(r, ref, names) <= acc
 
 
 def test_the_sparse_path_drops_nothing_its_estimate_cannot_see():
@@ -650,4 +655,4 @@ def test_the_sparse_path_drops_nothing_its_estimate_cannot_see():
     r = m.simulate(1.0, 1e-2, solver="expm", accuracy=1.5e-8)
     for kind in ("w", "phi"):
         names = [f"J{i}.{kind}" for i in range(n)]
-        assert rel_error(r, names, np.column_stack([ref[nm] for nm in names])) <= r.stats.error_estimate, kind
+        assert off(r, ref, names) <= r.stats.error_estimate, kind

@@ -231,6 +231,17 @@ class OdeForm:
         g[2 * n:] = out[n_c:]
         return g
 
+    def kernel_arguments(self):
+        """``(ih, fh, buf)`` of the compiled right-hand side (``_odeform_kernels.linear_rhs_into``) when it is whole on
+        its own: compiled, and its signals in its own table (else Python writes them into ``buf`` before each call,
+        ``rhs_into``); None otherwise."""
+        if self._native is None:
+            return None
+        _, ih, fh, signals, _ = self._native
+        if not signals and self.V is not None:
+            return None
+        return ih, fh, self.buf
+
     def rhs_into(self, t, u, out):
         """``rhs(t, u)`` written into ``out`` (length ``size``, not ``u``): the compiled kernel writes there
         directly (an integrator that keeps its stages in rows of one array saves a copy per stage); the Python

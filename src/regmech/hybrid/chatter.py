@@ -53,8 +53,10 @@ class ChatterGuard:
         return f"hard stop '{name}'" if name in self.impacts else f"friction device '{name}'"
 
     def _others(self) -> str:
-        """The event-locating ODE-form solvers to suggest, without the one that runs."""
-        return " or ".join(f"'{s}'" for s in ("scipy:DOP853", "scipy:Radau") if s != self.solver)
+        """The event-locating ODE-form solvers to suggest, without the method that runs (regmech's ``dop853`` and
+        ``scipy:DOP853`` are one method)."""
+        method = (self.solver or "").lower().removeprefix("scipy:")
+        return " or ".join(f"'{s}'" for s in ("dop853", "scipy:Radau") if s.lower().removeprefix("scipy:") != method)
 
     def record_settle(self, t: float, changes, crossed, devices) -> None:
         """What the mode logic did at an event: each change (``record``), or, when it changed nothing, each

@@ -143,8 +143,6 @@ class DormandPrince:
         self._k = compiled_passes(self.n)
         # a compiled sweep over a step's stages (``OdeProblem.stage_sweep``): the same passes as the loop below
         self._sweep = stages if self._k is not None else None
-        self._A_full = np.ascontiguousarray(self.A, dtype=np.float64)
-        self._C_full = np.ascontiguousarray(self.C, dtype=np.float64)
         self.f = self._eval(self.t, self.y)
         S = self.n_stages
         self.K = np.empty((self.K_rows(), self.n))
@@ -174,6 +172,18 @@ class DormandPrince:
     def atol(self, value):
         # one array of length n, whatever was given (the compiled norm reads one entry per state)
         self._atol = np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float64), (self.n,)))
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        # every stage's row of A and node c in one square table, the extra stages of a dense output included (rows
+        # S + 1 on; row S, the step's end, is made from B): what the compiled sweep reads (``_sweep``)
+        extra_a, extra_c = getattr(cls, "A_EXTRA", ()), getattr(cls, "C_EXTRA", ())
+        S = cls.n_stages
+        rows = S + 1 + len(extra_c)
+        cls._A_ALL, cls._C_ALL = np.zeros((rows, rows)), np.zeros(rows)
+        cls._A_ALL[:S, :cls.A.shape[1]], cls._C_ALL[:S] = cls.A, cls.C
+        for i, (a, c) in enumerate(zip(extra_a, extra_c)):
+            cls._A_ALL[S + 1 + i, :S + 1 + i], cls._C_ALL[S + 1 + i] = a[:S + 1 + i], c
 
     def K_rows(self) -> int:
         return self.n_stages + 1
@@ -234,7 +244,7 @@ class DormandPrince:
             K[0] = f
             if self._sweep is not None:
                 self.nfev += S - 1
-                self._sweep(y, K, self._A_full, self._C_full, 1, S, t, h, self._work)
+                self._sweep(y, K, self._A_ALL, self._C_ALL, 1, S, t, h, self._work)
             else:
                 for s in range(1, S):
                     self._stage(y, self._a_rows[s], s, h, self._work)
@@ -331,13 +341,6 @@ class Dop853(DormandPrince):
 
     #: the rows of A of the three extra stages, each to its stage (13, 14, 15)
     _A_EXTRA_ROWS = [np.ascontiguousarray(a[:_ScipyDOP853.n_stages + 1 + i]) for i, a in enumerate(A_EXTRA)]
-    #: ... as rows 13-15 of one square matrix, and their nodes, for the compiled sweep (``_sweep``)
-    _A_DENSE = np.zeros((_ScipyDOP853.n_stages + 1 + len(C_EXTRA),) * 2)
-    _C_DENSE = np.zeros(_ScipyDOP853.n_stages + 1 + len(C_EXTRA))
-    for _i, _a in enumerate(_A_EXTRA_ROWS):
-        _A_DENSE[_ScipyDOP853.n_stages + 1 + _i, :len(_a)] = _a
-        _C_DENSE[_ScipyDOP853.n_stages + 1 + _i] = C_EXTRA[_i]
-    del _i, _a
 
     def K_rows(self) -> int:
         # the 13 stages of a step and the three more of its dense output (rows 13-15)
@@ -374,11 +377,12 @@ class Dop853(DormandPrince):
         S1 = self.n_stages + 1
         if h and self._sweep is not None:
             self.nfev += len(self.C_EXTRA)
-            self._sweep(y0, K, self._A_DENSE, self._C_DENSE, S1, S1 + len(self.C_EXTRA), t0, h, self._work)
-        for i, (a, c) in enumerate(zip(self._A_EXTRA_ROWS, self.C_EXTRA) if h and self._sweep is None else ()):
-            s = S1 + i
-            self._stage(y0, a, s, h, self._work)
-            self._eval_into(t0 + c * h, self._work, s)
+            self._sweep(y0, K, self._A_ALL, self._C_ALL, S1, S1 + len(self.C_EXTRA), t0, h, self._work)
+        elif h:
+            for i, (a, c) in enumerate(zip(self._A_EXTRA_ROWS, self.C_EXTRA)):
+                s = S1 + i
+                self._stage(y0, a, s, h, self._work)
+                self._eval_into(t0 + c * h, self._work, s)
         D, last = self.D, self.n_stages
 
         def weights(x):

@@ -49,9 +49,10 @@ Two storage paths for E (the D_k W are always dense N x n_in):
   scales positions by one frequency) the slow modes amplify what is dropped
   like round-off (a random stiff chain of 60 inertias, link spread in the
   thousands: 4.4e-9 of the range of the angles at 1e-17, where its estimate
-  said 1.6e-9, and about 1e-11 at 1e-20 or with nothing dropped), while the benchmark chains of 1,000 and 10,000 inertias
-  and a train of 500 cars changed by under 5e-13 and ran in about the same
-  time (80/86, 580/587 and 182/179 ms). The Richardson companions drop 1000
+  said 1.6e-9, and about 1e-11 at 1e-20 or with nothing dropped), while the
+  benchmark chains of 1,000 and 10,000 inertias and a train of 500 cars
+  changed by under 5e-13 and ran in about the same time (80/86, 580/587 and
+  182/179 ms). The Richardson companions drop 1000
   times less again (``expm.COMPANION_DROP``), so that what is dropped
   shows in the estimate.
 """

@@ -101,15 +101,12 @@ class OdeProblem:
             return None
         from ..compile.odeform import ode_form
         from . import dopri
-        form = ode_form(self.c)
-        native = form._native
-        if native is None or (not native[3] and form.V is not None):
-            return None
-        kernels = dopri.compiled_passes(self.size)
+        args = ode_form(self.c).kernel_arguments()
+        kernels = dopri.compiled_passes(self.size) if args is not None else None
         if kernels is None:
             return None
-        _, ih, fh, _, _ = native
-        c, buf, stages = self.c, form.buf, kernels.linear_stages
+        ih, fh, buf = args
+        c, stages = self.c, kernels.linear_stages
 
         def sweep(y, K, A, C, s0, s1, t, h, work):
             self.nfev += s1 - s0
