@@ -1199,3 +1199,51 @@ def test_relocation_past_an_early_located_crossing_keeps_a_dip_inside_its_step(k
     tg = np.linspace(0.0, t_end, 1000)
     err = max(np.max(np.abs(res.at(n, tg) - ref.at(n, tg))) / np.ptp(ref.at(n, tg)) for n in ("J1.w", "J2.w", "J3.w"))
     assert err <= (1e-4 if "accuracy" in kw else 1e-5), err
+
+
+def _motor_on_a_hard_stop_through_a_lossy_gear_to_a_wheel():
+    """Calibration seed 5110, without its separate braked mass."""
+    from regmech.components import ElectricMotor, HardStop, Mass, Wheel
+    m = rm.Model("r5110")
+    J1 = m.add(Inertia("J1", J=0.3067, w0=0.0))
+    motor = m.add(ElectricMotor("emot1", command=Step(height=-0.6584, start_time=0.2216, offset=0.6049),
+                                tau_max=1.927, p_max=99.43))
+    stop = m.add(HardStop("hstop1", lower=-0.1616, upper=0.00166, e=0.769))
+    J2 = m.add(Inertia("J2", J=0.4321))
+    gear = m.add(LossyGear("lgear1", ratio=0.8338, loss_table=[[0.0, 0.9682, 0.7854, 0.1132, 0.06749],
+                                                              [5.529, 0.8617, 0.9185, 0.01086, 0.00825],
+                                                              [18.06, 1.0, 1.0, 0.0, 0.0]]))
+    M2 = m.add(Mass("M2", m=469.4))
+    wheel = m.add(Wheel("wheel1", radius=0.1452, J=1.451, m_axle=34.15, c_tyre=82370.0, d_tyre=33.82, mu=0.6792,
+                        peak=1.216, fn=lambda t: 3679.0 - 1363.0 * (1.0 - math.exp(-t / 0.02632)), w0=0.0, v0=0.0))
+    shaft = m.add(Shaft("shaft1", stiffness=11510.0, damping=1.08))
+    m.connect(motor.flange, J1.flange_b)
+    m.connect(stop.flange, J1.flange_a)
+    m.connect(gear.flange_a, J1.flange_b)
+    m.connect(gear.flange_b, J2.flange_b)
+    m.connect(wheel.axle, M2.flange_a)
+    m.connect(shaft.flange_a, J2.flange_b)
+    m.connect(shaft.flange_b, wheel.hub)
+    return m
+
+
+@pytest.mark.parametrize("kw", [dict(rtol=1e-6), dict(accuracy=1e-4)])
+def test_a_gear_left_rolling_at_zero_speed_is_stopped_when_it_reverses(kw):
+    """Calibration seed 5110: the hard stop releases J1 at t = 0.264976 with lgear1 rolling forward at exactly zero
+    speed; its speed function ``mode * w_a`` started the segment at 0.0, was disarmed by the ODE driver until
+    positive, and the gear rolled backward unseen: up to t = 0.28 DOP853 returned J1.w 7.2 % of its range off
+    (estimate 9.6e-5 at accuracy 1e-4, at rtol 1e-10 the same), the gear supplying 1.5 mW; a longer run was
+    refused at the next event (``_check_sliding_sides``). The reference sticks it there and rolls it backward
+    from 0.266052."""
+    m = _motor_on_a_hard_stop_through_a_lossy_gear_to_a_wheel()
+    t_end, dt = 0.28, 0.0002463296398891967
+    ref = m.simulate(t_end, dt_out=dt, solver="ida", rtol=1e-10)
+    res = m.simulate(t_end, dt_out=dt, solver="dop853", **kw)
+    tg = np.linspace(0.0, t_end, 1000)
+    err = max(np.max(np.abs(res.at(n, tg) - ref.at(n, tg))) / np.ptp(ref.at(n, tg)) for n in ("J1.w", "J2.w", "J1.phi"))
+    assert err <= 1e-4, err
+    p = res["lgear1.power"]
+    assert p.min() >= -1e-9 * np.abs(p).max(), p.min()
+    from regmech.modes import BACKWARD
+    assert any(e.component == "lgear1" and e.kind == "mode" and e.new_mode == BACKWARD
+               for e in res.events if 0.265 < e.t < 0.267), res.events

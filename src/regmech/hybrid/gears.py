@@ -36,7 +36,14 @@ def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impac
 def gear_events(dev, mode, quadrant, w, tau_loss, lam_g):
     """The gear's two event functions, each crossing zero downwards when its mode must change:
     stuck: the margins ``hi - tau_loss`` and ``tau_loss - lo`` to the loss torque it can hold;
-    rolling: ``mode * w_a`` (it stops) and ``quadrant * tau_eta`` (the driving side changes)."""
+    rolling: ``mode * w_a`` (it stops) and ``quadrant * tau_eta`` (the driving side changes).
+
+    A gear rolling at exactly zero speed (left there by the mode logic: released from a hard stop at the edge of
+    its capacity) gets ``1e-300`` for its speed function, as a friction device sliding at zero slip does
+    (``FrictionSet.event_values``): a function that starts a segment at zero is disarmed by the ODE driver until it
+    is positive and left inactive by IDA's root finding, so a gear that then rolled backward was never stopped.
+    Calibration seed 5110 (a motor on a hard stop through a lossy gear to a wheel): DOP853 rolled it "forward" at
+    w_a down to -0.0136 rad/s for 18 ms, its loss supplying power, until the next event's check refused the run."""
     if mode == FREE or mode == HELD:
         return 1.0, 1.0
     if mode == STUCK:
@@ -47,7 +54,8 @@ def gear_events(dev, mode, quadrant, w, tau_loss, lam_g):
     # tau_eta stays at round-off (an unloaded idler at constant speed: a Gearbox's idle gears) from
     # firing a root at every step (it chattered, ChatteringError, at t ~ 1e-11 s)
     tie = 1e-10 * max(1.0, abs(tau_loss), abs(lam_g))
-    return mode * w, quadrant * dev.tau_eta(mode, abs(w), tau_loss, lam_g) + tie
+    speed = mode * w
+    return (speed if speed != 0.0 else 1e-300), quadrant * dev.tau_eta(mode, abs(w), tau_loss, lam_g) + tie
 
 
 class GearSides:
