@@ -1247,3 +1247,64 @@ def test_a_gear_left_rolling_at_zero_speed_is_stopped_when_it_reverses(kw):
     from regmech.modes import BACKWARD
     assert any(e.component == "lgear1" and e.kind == "mode" and e.new_mode == BACKWARD
                for e in res.events if 0.265 < e.t < 0.267), res.events
+
+
+@pytest.mark.parametrize("solver", ["dop853", "ida"])
+def test_a_run_ending_with_a_gear_rolling_against_its_direction_is_refused(solver, monkeypatch):
+    """The net behind the test above (``ModeLogic.check_final``): with the gear's speed function at zero as it was
+    before (0.0, disarmed at the restart), the run to 0.28 s ended with lgear1 rolling "forward" at w_a < 0 and no
+    later event to check it, and DOP853 returned it. IDA leaves the function inactive alike; the run is refused
+    either way (DOP853: by the final check; IDA: by its own round-off crossings, the chatter guard)."""
+    import regmech.hybrid.events as events_module
+    from regmech.errors import SimulationError
+    from regmech.hybrid.gears import gear_events
+
+    def as_before(*args):
+        speed, side = gear_events(*args)
+        return (0.0 if speed == 1e-300 else speed), side
+    monkeypatch.setattr(events_module, "gear_events", as_before)
+    m = _motor_on_a_hard_stop_through_a_lossy_gear_to_a_wheel()
+    t_end, dt = 0.28, 0.0002463296398891967
+    try:
+        res = m.simulate(t_end, dt_out=dt, solver=solver, rtol=1e-6)
+    except SimulationError as exc:
+        assert "lgear1" in str(exc), exc
+        return
+    monkeypatch.undo()          # returned: then it must be right
+    ref = m.simulate(t_end, dt_out=dt, solver="dop853", rtol=1e-10)
+    tg = np.linspace(0.0, t_end, 1000)
+    assert np.max(np.abs(res.at("J1.w", tg) - ref.at("J1.w", tg))) <= 1e-4 * np.ptp(ref.at("J1.w", tg))
+
+
+def test_two_event_functions_crossing_at_one_instant_are_both_reported():
+    """Fuzz seed 91079: the brake on a torque converter's pump reverses its slip at the instant the converter's
+    locked-up flow crosses its kink (pump and turbine speeds through zero together). ``locate`` returned one of the
+    two crossings; the brake's function started the next segment at -1e-17, disarmed, and DOP853 kept the brake
+    sliding backward up to 276 rad/s, its friction supplying power, until the check at the lock-up breakpoint
+    (t = 0.6629) refused the run. The brake sticks there and holds the drive's 149 N m (its capacity is 242 N m):
+    everything stays at rest (ida at rtol 1e-10 and DOP853 at 1e-11 alike)."""
+    from regmech.components import Brake, TorqueConverter
+    from regmech.signals import Constant
+    from regmech.components.heat import ThermalMass
+    from regmech.modes import STUCK
+    m = rm.Model("fuzz_91079")
+    J1 = m.add(Inertia("J1", J=0.2176, w0=-0.2212, phi0=-0.07001))
+    brake = m.add(Brake("brake1", mu=0.536, peak=1.098, cgeo=0.0374, fn_max=18690.0, f_normalized=Constant(0.5888),
+                        thermal=ThermalMass(C=1.313, G=0.1585, fade=[(293.15, 1.0), (295.0, 0.7297)])))
+    conv = m.add(TorqueConverter("conv1", K_table=[(0.0, 3.605), (0.5, 3.966), (0.9, 5.768)],
+                                 TR_table=[(0.0, 1.753), (0.85, 1.0), (1.0, 1.0)], J_pump=0.02695, J_turbine=0.01974,
+                                 lockup=Step(height=-0.1182, start_time=0.6629, offset=0.9132), lockup_capacity=317.2))
+    J2 = m.add(Inertia("J2", J=0.5694))
+    lsd = m.add(LimitedSlipDifferential("lsd1", ratio=1.0, preload=2755.0, mu=0.2544, cgeo=0.05, peak=1.473,
+                                        J_side=0.02695))
+    drive = m.add(Torque("drive1", tau=149.1))
+    m.connect(brake.flange, J1.flange_b)
+    m.connect(conv.pump, J1.flange_b)
+    m.connect(conv.turbine, J2.flange_a)
+    m.connect(lsd.carrier, J1.flange_a)
+    m.connect(drive.flange, conv.turbine)
+    res = m.simulate(1.409, dt_out=0.0035225, solver="dop853", rtol=1e-6)
+    assert [(e.component, e.new_mode) for e in res.events if e.kind == "mode"][:2] == [("conv1.lockup", STUCK),
+                                                                                        ("brake1", STUCK)], res.events
+    assert np.max(np.abs(res["J1.w"][res.t > 2e-4])) <= 1e-9
+    assert np.max(np.abs(res["J2.w"][res.t > 2e-4])) <= 1e-9

@@ -496,6 +496,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
         # reached t_stop: a time event (signal breakpoint) or the end
         t = t_stop
         if t >= t_end:
+            if fr:
+                fr.check_final(t, y, yp, modes)         # no device left sliding the wrong way (``check_final``)
             break
         try:
             t_stop = next(bp_iter)
