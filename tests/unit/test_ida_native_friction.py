@@ -13,6 +13,7 @@ from regmech.bench import hard_models as H
 from regmech.components import (Brake, Clutch, Fixed, Force, FrictionContact, Inertia, Mass, SpringDamper,
                                 Torque)
 from regmech.library import coupled_clutches, gear_shift
+from regmech.components.laws import Stribeck
 from regmech.signals import Ramp, Sine, Step
 from regmech.solvers.accuracy import net_changes
 
@@ -192,6 +193,7 @@ class StickyClutch(Clutch):
 
 @pytest.mark.parametrize("variant, reason", [
     (lambda m: setattr(m.components["clutch1"], "mu_table", [[0.0, 0.5], [5.0, 0.3]]), "speed-dependent"),
+    (lambda m: setattr(m.components["clutch1"], "mu_law", Stribeck(mu_s=0.5, mu_k=0.3, w_s=1.0)), "speed-dependent"),
 ])
 def test_friction_laws_the_kernels_cannot_evaluate_run_the_usual_path(variant, reason):
     m = coupled_clutches()
@@ -376,3 +378,22 @@ def test_band_jacobian_kernel_is_the_system_jacobian_in_every_mode_set(key):
             np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-14 * max(1.0, float(np.abs(want).max())))
             assert np.array_equal(got != 0, want != 0)
             assert not np.isnan(data).any()
+
+
+@pytest.mark.parametrize("solver", [dict(), dict(solver="ida", native=True)])
+def test_a_stribeck_clutch_breaks_away_under_the_default_call(solver):
+    """A ``mu_law`` overrides ``mu``; ``linear_law`` read the constant ``mu`` (0.5 by default) as the clutch's law, so
+    the compiled path, which the default call takes, held a clutch of mu_s = 0.6 under a ramp torque for the whole
+    run: no break-away at t = 0.6 s (mu_s cgeo fn = 6 N m), no error. Found by the stick/slip validation tests when
+    ida ran natively by default."""
+    m = rm.Model("break")
+    g = m.add(Fixed("g"))
+    tq = m.add(Torque("tq", tau=Ramp(height=10.0, duration=1.0)))
+    J1 = m.add(Inertia("J1", J=1.0, phi0=0.0, w0=0.0))
+    cl = m.add(Clutch("cl", fn_max=10.0, mu_law=Stribeck(mu_s=0.6, mu_k=0.4, w_s=0.5)))
+    m.connect(tq.flange, J1.flange_a)
+    m.connect(J1.flange_b, cl.flange_a)
+    m.connect(cl.flange_b, g.flange)
+    assert cl.linear_law() is None
+    res = m.simulate(1.0, dt_out=1e-3, **solver)
+    assert len(res.events) == 1 and res.events[0].t == pytest.approx(0.6, abs=1e-6)

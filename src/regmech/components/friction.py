@@ -245,7 +245,11 @@ class _MuMixin:
         return float(mus[k] + slope * (w_abs - ws[k])), float(slope)
 
     def _constant_mu(self):
-        """mu when it does not depend on the relative speed (a constant, or a one-point table), else None."""
+        """mu when it does not depend on the relative speed (a constant, or a one-point table), else None; None
+        with a ``mu_law``, which overrides both (read as the constant ``mu``, a Stribeck clutch under a ramp
+        torque never broke away on the compiled IDA path, ``linear_law``, which the default call takes)."""
+        if self._values.get("mu_law") is not None:
+            return None
         tab = self._values.get("mu_table")
         if tab is None:
             return float(self._values["mu"])

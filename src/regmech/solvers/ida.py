@@ -336,10 +336,16 @@ def _blame(c, y, yp):
     return names
 
 
+def _native_available() -> bool:
+    """Whether IDA can run with compiled callbacks here (numba and SUNDIALS' libraries, ``ida_native``)."""
+    from .ida_native import libraries
+    return not isinstance(libraries(), str)
+
+
 @register("ida", IDA_OPTIONS)
 def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=None, linsolver=None,
                  max_step=None, max_order=5, dense_max=60, max_events=100000, max_steps=50000, stiff_check=True,
-                 chatter_window=None, chatter_count=50, native=False, atol_rescale=True):
+                 chatter_window=None, chatter_count=50, native=None, atol_rescale=True):
     """IDA with analytic sparse Jacobian and event handling (see module docstring).
 
     A run whose motion turns out small for the absolute tolerance is repeated
@@ -348,6 +354,8 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     ``atol_rescale=False`` makes the one run (the accuracy contract's first
     run: the contract scales its own pair, ``solvers.accuracy``).
     """
+    if native is None:      # not asked: compiled callbacks when numba and SUNDIALS' libraries are there
+        native = _native_available()
     call = dict(locals())
     rescale = call.pop("atol_rescale")
     res = _run_ida(**call)
