@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_foundation import chain  # noqa: E402
 
 SOLVERS = ["auto", "ida", "ida native", "expm", "scipy:DOP853"]
-#: what a column runs: ``ida native`` is ida with its compiled callbacks (``native=True``), what auto runs when
-#: numba is installed; ``ida`` the Python callbacks, what ``solver="ida"`` runs unless told
-RUN = {"ida native": ("ida", {"native": True})}
+#: what a column runs: ``ida native`` is ida with its compiled callbacks (``native=True``), what auto and a plain
+#: ``solver="ida"`` run (numba is a dependency since session 20); ``ida`` the Python callbacks (``native=False``)
+RUN = {"ida native": ("ida", {"native": True}), "ida": ("ida", {"native": False})}
 ACCURACIES = [1e-2, 1e-4, 1e-6]
 DT_OUTS = [1e-2, 1e-3]
 

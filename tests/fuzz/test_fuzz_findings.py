@@ -14,8 +14,8 @@ import pytest
 import regmech as rm
 from regmech.bench.fuzz import FAMILIES_BEFORE_17, FAMILIES_BEFORE_S9, energy_checks
 from regmech.bench.metrics import sample
-from regmech.components import (Clutch, Differential, Inertia, LimitedSlipDifferential, LossyGear, Planetary,
-                                 Position, Shaft, Speed, SpringDamper, Torque)
+from regmech.components import (Clutch, Differential, FrictionContact, Inertia, LimitedSlipDifferential, LossyGear,
+                                 Planetary, Position, Shaft, Speed, SpringDamper, Torque)
 from regmech.signals import Ramp, Sine, Step, Table
 from regmech.solvers.common import output_grid
 
@@ -1308,3 +1308,64 @@ def test_two_event_functions_crossing_at_one_instant_are_both_reported():
                                                                                         ("brake1", STUCK)], res.events
     assert np.max(np.abs(res["J1.w"][res.t > 2e-4])) <= 1e-9
     assert np.max(np.abs(res["J2.w"][res.t > 2e-4])) <= 1e-9
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(solver="ida", accuracy=1e-4)])
+def test_an_ida_root_that_its_relocation_disproves_is_dropped(kw):
+    """Fuzz seed 92047, reduced: a mass slides through the knee of its friction table (|v| = 0.8856 m/s) in one
+    0.029 s IDA step, whose interpolant (on the table's wrong piece) reaches zero slip at t = 0.19039 where the
+    law's speed is 0.39 m/s. ``_relocate_root`` integrated that stretch again in short steps and found no root,
+    then kept the root it had just disproved: the mass restarted stuck, both runs of the accuracy pair alike,
+    and the default call returned M1.v 7.2e-3 of its range off against an estimate of 1.3e-5 (4 of 24 variants
+    of the model broken). The run now goes on from the re-integration's state."""
+    from regmech.components import Fixed, Force, Mass
+    m = rm.Model("r92047")
+    M1 = m.add(Mass("M1", m=0.1498))
+    contact = m.add(FrictionContact("contact1", peak=1.272, mu_table=[(0.0, 0.1202), (0.8856, 0.8007)],
+                                    fn=Ramp(height=-40.48, duration=0.3205, start_time=0.07994, offset=69.88)))
+    wall = m.add(Fixed("wall", domain="translational"))
+    push = m.add(Force("push1", f=Table([(0.0, -64.57), (0.1034, 72.32), (0.3627, -82.77), (0.6548, -2.153)])))
+    m.connect(contact.flange_a, wall.flange)
+    m.connect(contact.flange_b, M1.flange_a)
+    m.connect(push.flange, M1.flange_a)
+    t_end, dt = 0.824, 0.00206
+    ref = m.simulate(t_end, dt_out=dt, solver="dop853", rtol=1e-11, atol=1e-13)
+    res = m.simulate(t_end, dt_out=dt, **kw)
+    tg = np.linspace(0.0, t_end, 2001)
+    err = np.max(np.abs(res.at("M1.v", tg) - ref.at("M1.v", tg))) / np.ptp(ref.at("M1.v", tg))
+    assert err <= kw.get("accuracy", 1e-3), (err, res.stats.error_estimate)
+    assert [e.new_mode for e in res.events] == [e.new_mode for e in ref.events]
+
+
+def test_a_scan_reports_every_guard_not_positive_at_its_first_dip():
+    """Calibration seed 6060, reduced: in one 0.12 s DOP853 step (rtol 1e-3, the first run of the contract at
+    accuracy 1e-2) the scan's first sample with a guard at or below zero had four of them there; ``_first_dip``
+    returned the lowest index, a lossy gear's driving side (crossing at 0.504 s), and dropped the gearbox shift
+    clutch's slip reversal (0.48035 s), which the clutch then slid through unseen until the check at the gear's
+    event refused the run ("gap in regmech's mode logic", w_rel = -0.745)."""
+    from regmech.components import Gearbox, LinearSpeed, Wheel
+    m = rm.Model("r6060")
+    wheel = m.add(Wheel("wheel1", radius=0.2917, J=2.924, m_axle=3.959, c_tyre=26920.0, d_tyre=252.5, mu=0.8981,
+                        peak=1.162, fn=Step(height=-2215.0, start_time=0.2621, offset=11440.0)))
+    motor = m.add(LinearSpeed("motor1", v_ref=Table([(0.0, 3.173), (0.03553, 2.245), (0.03734, 1.602),
+                                                      (0.1213, 1.869), (0.3024, -2.922), (0.7354, -2.545)]),
+                              domain="translational"))
+    gbox = m.add(Gearbox("gbox1", ratios=[1.144, 3.566], gear=[(0.0, 2), (0.2926, 1)], capacity=0.2367,
+                         efficiency=[0.9846, 0.9173], J_in=1.968, J_out=0.07289, J_gear=0.04309, release_time=0.03214,
+                         engage_time=0.06613, shift_delay=0.03193))
+    m.add(Inertia("J2", J=0.01284, w0=0.4378, phi0=0.01924))     # unconnected: it shapes the step control
+    J3 = m.add(Inertia("J3", J=0.2346, w0=-3.885))
+    J4 = m.add(Inertia("J4", J=14.96))
+    gear = m.add(LossyGear("lgear1", ratio=-0.2057, loss_table=[[0.0, 0.8321, 0.7025, 0.0, 0.0],
+                                                               [5.202, 1.0, 1.0, 0.0, 0.0]]))
+    m.connect(motor.flange, wheel.axle)
+    m.connect(gbox.flange_a, wheel.hub)
+    m.connect(gbox.flange_b, J3.flange_b)
+    m.connect(gear.flange_a, J4.flange_b)
+    m.connect(gear.flange_b, wheel.hub)
+    t_end, dt = 1.167, 0.0004309453471196455
+    ref = m.simulate(t_end, dt_out=dt, solver="dop853", rtol=1e-9)
+    res = m.simulate(t_end, dt_out=dt, solver="dop853", rtol=1e-3)
+    tg = np.linspace(0.0, t_end, 2000)
+    for name in ("J3.w", "J4.w", "wheel1.tyre.flange_a.v"):
+        assert np.max(np.abs(res.at(name, tg) - ref.at(name, tg))) <= 1e-2 * np.ptp(ref.at(name, tg)), name

@@ -47,7 +47,7 @@ def mixed_inputs():
 
 def _compare(m, t_end, rtol, **kw):
     a = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol, native=True, **kw)
-    b = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol, **kw)
+    b = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol, native=False, **kw)
     assert a.stats.extra.get("native") is True
     assert "native" not in b.stats.extra
     np.testing.assert_array_equal(a.t, b.t)
@@ -58,7 +58,7 @@ def _compare(m, t_end, rtol, **kw):
                                           (lambda: chain(60), 0.5)])
 def test_native_agrees_with_the_python_path_and_a_tight_reference(build, t_end):
     m = build()
-    ref = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=1e-11, atol=1e-13)
+    ref = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=1e-11, atol=1e-13, native=False)
     a, b = _compare(m, t_end, 1e-7)
     names = [n for n in ref.names if n.endswith((".w", ".phi"))]
     for name in names:
@@ -107,7 +107,7 @@ def test_models_the_native_path_cannot_serve_run_the_usual_path_and_say_why(mode
     res = m.simulate(0.5, dt_out=0.05, solver="ida", native=True)
     note = res.stats.extra.get("native")
     assert isinstance(note, str) and note.startswith("not used") and reason in note
-    plain = m.simulate(0.5, dt_out=0.05, solver="ida")
+    plain = m.simulate(0.5, dt_out=0.05, solver="ida", native=False)
     np.testing.assert_array_equal(res["J1.w" if "J1.w" in res.names else "J0.w"],
                                   plain["J1.w" if "J1.w" in plain.names else "J0.w"])
 
@@ -159,7 +159,7 @@ def test_native_reports_ida_s_own_step_count():
     are at least as many (accepted + rejected) on the same model and tolerances."""
     m = chain(5, tau=Sine(amplitude=1.0, freq_hz=2.0))
     native = m.simulate(1.0, 0.01, solver="ida", rtol=1e-6, native=True)
-    usual = m.simulate(1.0, 0.01, solver="ida", rtol=1e-6)
+    usual = m.simulate(1.0, 0.01, solver="ida", rtol=1e-6, native=False)
     assert native.stats.extra["native"] is True
     assert native.stats.extra["steps_are_attempts"] is False and "attempts" not in str(native.stats)
     assert 10 < native.stats.steps <= usual.stats.steps <= 2 * native.stats.steps

@@ -115,7 +115,7 @@ def _state_names(res):
 
 def _pair(m, t_end, rtol):
     a = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol, native=True)
-    b = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol)
+    b = m.simulate(t_end, dt_out=1e-2, solver="ida", rtol=rtol, native=False)
     assert a.stats.extra.get("native") is True, a.stats.extra.get("native")
     assert "native" not in b.stats.extra
     return a, b

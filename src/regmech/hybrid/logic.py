@@ -459,7 +459,8 @@ class ModeLogic:
                     f"stick/slip logic at t={t:.9g}: '{dev.name}' would slide "
                     f"{'Forward' if modes[j] == FORWARD else 'Backward'} with w_rel = {w[j]:.6g}, against its own "
                     f"direction (its friction would supply power). This is a gap in regmech's mode logic: please "
-                    f"report it with the model; solver='ida' or a tighter tolerance may avoid the instant.")
+                    f"report it with the model. The other kind of solver ('ida' or 'dop853': they find events "
+                    f"differently) or a tighter tolerance may avoid the instant.")
 
     def snapshot(self):
         """The state ``settle`` leaves behind (driving sides, relief events, engagement), to ``restore`` it with
