@@ -47,13 +47,14 @@ hand. At the same rtol the two do not do the same work: regmech caps
 DOP853's step below its stability limit, more tightly the tighter rtol
 (``scipy_ivp.stability_cap``, session 11), and is 3 to 20 times more
 accurate there on the chains. The judged row therefore runs regmech at a
-looser rtol, the loosest of ``ODE_LOOSER`` (3 and 10) times rtol whose
+looser rtol, the loosest of ``ODE_LOOSER`` (3, 10 and 20) times rtol whose
 error is at most the hand run's (measured per row; the row says so when
 neither is): the driver's cost at matched accuracy. On the chain of 10,000
 inertias at 1e-6 regmech at 3 r was still 8 times more accurate than the
 hand run (4.3e-6 against 3.5e-5, 81 steps against 62), at 10 r 2.4 times
-(1.4e-5, 70 steps). The row at equal rtol is kept for reading. The runs at
-10 r serve this row only: they are not candidates for regmech's best,
+(1.4e-5, 70 steps), at 20 r matched (3.4e-5, 64 steps). The row at equal
+rtol is kept for reading. The runs at 10 r and 20 r serve this row only:
+they are not candidates for regmech's best,
 whose runs stay at the rtol of the peers' (and 3 r, as before).
 
 regmech's ``scipy:RK45`` at rtol r is a candidate for its best where the
@@ -194,8 +195,11 @@ class Tool:
 #: the judged ODE-form row runs regmech's DOP853 at the loosest of these multiples of the row's rtol whose error is
 #: within the hand run's at r (module docstring): measured on the chains of 100 to 10,000 inertias at rtol 1e-6 and
 #: 1e-9, regmech at 3 r was within the hand run's error in every case (chain1000 at 1e-6: 2.4e-6 against 9.8e-6;
-#: chain100 at 1e-9: 5.0e-9 against 5.5e-9), at 10 r on the largest chains (chain10000 at 1e-6: 1.4e-5 against 3.5e-5)
-ODE_LOOSER = (3.0, 10.0)
+#: chain100 at 1e-9: 5.0e-9 against 5.5e-9), at 10 r on the largest chains (chain10000 at 1e-6: 1.4e-5 against
+#: 3.5e-5, 70 steps against the hand's 62), and on chain10000 at 1e-6 at 20 r too (session 20: 3.38e-5 against 3.47e-5,
+#: 64 steps): the step between 10 and 30 (5.2e-5, beyond the hand's error) so that the matched run is matched, not
+#: 2.5 times more accurate
+ODE_LOOSER = (3.0, 10.0, 20.0)
 #: the ODE-form runs that are not candidates for regmech's best (module docstring)
 NOT_BEST = {f"regmech scipy:DOP853 at {f:g} rtol" for f in ODE_LOOSER if f > 3.0}
 

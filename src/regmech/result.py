@@ -126,7 +126,11 @@ class Stats:
                 if x.get("event_time_error") is not None:
                     est += f"; switch times +-{x['event_time_error']:.2g} s"
         auto = f" [auto: {self.extra['auto_reason']}]" if self.extra.get("auto_reason") else ""
-        return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms, {steps}, {self.rhs_calls} residual/RHS "
+        load = self.extra.get("native_load_s") or 0.0
+        # the first compiled IDA run of a process loads numba and the kernels (the first time on a machine, compiles
+        # them): a one-off, not the run's own cost
+        loaded = f" (+ {load:.1f} s loading the compiled kernels, once per process)" if load >= 0.05 else ""
+        return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms{loaded}, {steps}, {self.rhs_calls} residual/RHS "
                 f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}{auto}")
 
 

@@ -88,9 +88,18 @@ def _load():
 def simulate(model, t_end, dt_out=None, solver="auto", *, accuracy=None, t_start=0.0, **options):
     """Run ``model`` with ``solver`` (see the module docstring; ``register`` for what is checked first)."""
     _load()
+    if solver in ("auto", "ida") and options.get("native", True) is not False:
+        from .ida_native import libraries
+        libraries()         # numba's IDA kernels, loaded before any run's clock starts (reported below)
     # one wall-clock limit over everything the call runs (auto's choice, the contract's companion runs)
     with time_limit(options.pop("timeout_s", None)):
         res = _simulate(model, t_end, dt_out, solver, accuracy, t_start, options)
+    from .ida_native import load_time
+    loaded = load_time()
+    if loaded > 0.0 and hasattr(res, "stats"):
+        # this call loaded numba's compiled IDA kernels (once per process; the first time on a machine it compiles
+        # them into numba's cache): a one-off beside the run's own time, said in ``str(res.stats)``
+        res.stats.extra["native_load_s"] = loaded
     if hasattr(res, "integrator"):
         from .quadrature import cumulative
         res.integrator = cumulative        # heat and res.integral follow the model's laws between the rows

@@ -355,8 +355,12 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     ``atol_rescale=False`` makes the one run (the accuracy contract's first
     run: the contract scales its own pair, ``solvers.accuracy``).
     """
-    if native is None:      # not asked: compiled callbacks when numba and SUNDIALS' libraries are there
+    # not asked: compiled callbacks when numba and SUNDIALS' libraries are there (loaded here, before the run's
+    # clock; ``solvers.simulate`` reports the load); asked for: the run says why when they are not
+    if native is None:
         native = _native_available()
+    elif native:
+        _native_available()
     call = dict(locals())
     rescale = call.pop("atol_rescale")
     res = _run_ida(**call)

@@ -33,6 +33,7 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
+import time
 import weakref
 
 import numpy as np
@@ -52,7 +53,11 @@ class _Libraries:
 
     def __init__(self):
         import sksundae
+        t0 = time.perf_counter()
         from . import _native_kernels as K          # imports numba
+        # numba's import and the kernels' load from its on-disk cache (their compilation the first time on a
+        # machine): about 0.5-1 s, 6 s the first time; the run that pays it says so (``load_time``)
+        self.load_s = time.perf_counter() - t0
         self.K = K
         folder = os.path.join(os.path.dirname(os.path.dirname(sksundae.__file__)), "scikit_sundae.libs")
 
@@ -159,6 +164,16 @@ class _Libraries:
             self.mat_free(m)
 
 
+def load_time() -> float:
+    """The seconds the compiled kernels took to load in this process, the first time it is asked after they loaded
+    (the run that paid them reports them: ``Stats.extra["native_load_s"]``), else 0."""
+    lib = _LIB
+    if isinstance(lib, _Libraries) and not getattr(lib, "reported", False):
+        lib.reported = True
+        return lib.load_s
+    return 0.0
+
+
 def libraries():
     """The loaded libraries, or a string saying why the native path is not available."""
     global _LIB
@@ -166,7 +181,7 @@ def libraries():
         try:
             _LIB = _Libraries()
         except ImportError as exc:
-            _LIB = f"numba is not installed ({exc}); pip install 'regmech[native]'"
+            _LIB = f"numba is not installed ({exc}); pip install numba (a dependency of regmech)"
         except (OSError, AttributeError) as exc:
             _LIB = f"the SUNDIALS libraries of scikit-sundae could not be used directly ({exc})"
     return _LIB
