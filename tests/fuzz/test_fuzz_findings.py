@@ -1369,3 +1369,36 @@ def test_a_scan_reports_every_guard_not_positive_at_its_first_dip():
     tg = np.linspace(0.0, t_end, 2000)
     for name in ("J3.w", "J4.w", "wheel1.tyre.flange_a.v"):
         assert np.max(np.abs(res.at(name, tg) - ref.at(name, tg))) <= 1e-2 * np.ptp(ref.at(name, tg)), name
+
+
+def test_a_one_way_clutch_thrown_backward_by_an_impact_locks_in_it():
+    """Calibration seed 6140, reduced: J2 (w0 = 116.3) slides a one-way clutch forward over J1 and hits a hard
+    stop, which throws it back at -109 rad/s. The clutch kept its Forward mode at w_rel = -112.7 and every solver
+    refused the run ("gap in regmech's mode logic"). The freewheel locks within the impact now: a plastic impact of
+    its two sides after the stop's (momentum kept), then the stop again if the locked pair still runs into it.
+    Restitution applied to both sides at once had fed 51 J into the 334 J before the impact; the books must
+    close."""
+    from regmech.components import HardStop, OneWayClutch
+    from regmech.modes import STUCK
+    m = rm.Model("owc_impact")
+    J1 = m.add(Inertia("J1", J=0.01498))
+    owc = m.add(OneWayClutch("owc1", mu_table=[(0.0, 0.2061), (18.85, 0.6739)], peak=1.454, cgeo=0.2551,
+                             fn_max=643.7, f_normalized=1.0))
+    J2 = m.add(Inertia("J2", J=0.05034, w0=116.3))
+    stop = m.add(HardStop("hstop1", lower=-0.04838, upper=0.06345, e=0.9438))
+    m.connect(owc.flange_a, J1.flange_b)
+    m.connect(owc.flange_b, J2.flange_a)
+    m.connect(stop.flange, J2.flange_b)
+    runs = [m.simulate(0.05, dt_out=1e-4, solver=s, rtol=1e-9) for s in ("ida", "dop853")]
+    for res in runs:
+        hit = next(e for e in res.events if e.kind == "impact")
+        assert any(e.component == "owc1" and e.new_mode == STUCK and e.t == hit.t for e in res.events)
+        assert not energy_checks(res, m, rel=1e-6), energy_checks(res, m, rel=1e-6)
+        before, after = hit.t - 1e-5, hit.t + 1e-5
+        ke = [0.5 * 0.01498 * res.at("J1.w", s) ** 2 + 0.5 * 0.05034 * res.at("J2.w", s) ** 2 for s in (before, after)]
+        assert ke[1] < ke[0]
+        assert res.at("J1.w", after) == pytest.approx(res.at("J2.w", after), abs=1e-6)   # locked together
+    tg = np.linspace(0.0, 0.05, 500)
+    assert np.max(np.abs(runs[0].at("J2.w", tg) - runs[1].at("J2.w", tg))) <= 1e-5 * np.ptp(runs[1].at("J2.w", tg))
+    res = m.simulate(0.05, dt_out=1e-4)         # the default call
+    assert np.max(np.abs(res.at("J2.w", tg) - runs[1].at("J2.w", tg))) <= 1e-3 * np.ptp(runs[1].at("J2.w", tg))
