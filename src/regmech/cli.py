@@ -52,8 +52,8 @@ def _demo(args) -> int:
                      title=f"{model.name}: {t_end:g} s, {res.stats.solver}")
         except RegmechError:                 # matplotlib missing
             png_path = None
-        load = res.stats.extra.get("native_load_s") or 0.0      # numba's kernels, once per process
-        loaded = f" + {load:.1f} s loading the compiled kernels" if load >= 0.05 else ""
+        load = res.stats.load_time()        # numba's kernels, once per process
+        loaded = f" + {load:.1f} s loading the compiled kernels" if load else ""
         print(f"{model.name}: simulated {t_end} s in {(wall - load) * 1e3:.0f} ms{loaded} ({res.stats.rhs_calls} "
               f"residual calls, {len(res.events)} mode changes)")
         print(f"    {res.stats}")

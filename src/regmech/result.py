@@ -106,6 +106,11 @@ class Stats:
     error_estimate: float | None = None
     extra: dict = field(default_factory=dict)
 
+    def load_time(self) -> float:
+        """Seconds the call spent loading numba's compiled kernels (``extra["native_load_s"]``), 0 below 0.05 s."""
+        load = self.extra.get("native_load_s") or 0.0
+        return load if load >= 0.05 else 0.0
+
     def __str__(self):
         steps = "? steps" if self.steps is None else \
             f"{self.steps} step{' attempts' if self.extra.get('steps_are_attempts') else 's'}"
@@ -126,10 +131,10 @@ class Stats:
                 if x.get("event_time_error") is not None:
                     est += f"; switch times +-{x['event_time_error']:.2g} s"
         auto = f" [auto: {self.extra['auto_reason']}]" if self.extra.get("auto_reason") else ""
-        load = self.extra.get("native_load_s") or 0.0
         # the first compiled IDA run of a process loads numba and the kernels (the first time on a machine, compiles
         # them): a one-off, not the run's own cost
-        loaded = f" (+ {load:.1f} s loading the compiled kernels, once per process)" if load >= 0.05 else ""
+        load = self.load_time()
+        loaded = f" (+ {load:.1f} s loading the compiled kernels, once per process)" if load else ""
         return (f"{self.solver}: {self.wall_time * 1e3:.1f} ms{loaded}, {steps}, {self.rhs_calls} residual/RHS "
                 f"calls, {self.jac_calls} Jacobians, {self.segments} segments, {self.events} events{est}{auto}")
 

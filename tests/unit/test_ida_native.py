@@ -193,6 +193,5 @@ def test_the_call_that_loads_the_compiled_kernels_says_so_once(monkeypatch):
     first_call = first().simulate(0.1, dt_out=0.01)
     assert first_call.stats.extra["native_load_s"] == 1.23
     assert "ms (+ 1.2 s loading the compiled kernels, once per process)" in str(first_call.stats)
-    assert first_call.stats.wall_time < 1.23
     again = first().simulate(0.1, dt_out=0.01, solver="ida")
     assert "native_load_s" not in again.stats.extra and "loading" not in str(again.stats)

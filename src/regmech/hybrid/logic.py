@@ -436,10 +436,7 @@ class ModeLogic:
         off with an estimate of 9.6e-5. Such a run is refused, not returned."""
         v = y[self.c.iv]
         w = self.w_rel(v)
-        m = np.asarray(modes)
-        limit = -max(1e-9 * max(1.0, abs_max(v)), 1e-12 * abs_max(w))     # as ``_check_sliding_sides``
-        if np.any(((m == FORWARD) | (m == BACKWARD)) & (m * w < limit)):
-            self._check_sliding_sides(t, (w.tolist(), None, None, abs_max(w)), modes, 1e-9 * max(1.0, abs_max(v)))
+        self._check_sliding_sides(t, (w.tolist(), None, None, abs_max(w)), modes, 1e-9 * max(1.0, abs_max(v)))
 
     def _check_sliding_sides(self, t, view, modes, scale):
         """Refuse a restart with a device sliding (or a lossy gear rolling) against its own direction beyond

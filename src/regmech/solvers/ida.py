@@ -337,6 +337,13 @@ def _blame(c, y, yp):
     return names
 
 
+def _on_constraints(c, t, y, modes):
+    """A consistent restart ``(y, y')`` at ``t`` from the state of ``y``: its dummy coordinates from the constraints,
+    its accelerations and algebraic unknowns from the laws of ``modes``, not from IDA's interpolant."""
+    x, v, z = c.ode_lift(t, c.ode_state(y), modes)
+    return c.assemble_y(t, x, v, z, modes)
+
+
 def _native_available() -> bool:
     """Whether IDA can run with compiled callbacks here (numba and SUNDIALS' libraries, ``ida_native``)."""
     from .ida_native import libraries
@@ -355,12 +362,8 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     ``atol_rescale=False`` makes the one run (the accuracy contract's first
     run: the contract scales its own pair, ``solvers.accuracy``).
     """
-    # not asked: compiled callbacks when numba and SUNDIALS' libraries are there (loaded here, before the run's
-    # clock; ``solvers.simulate`` reports the load); asked for: the run says why when they are not
-    if native is None:
+    if native is None:      # not asked: compiled callbacks when numba and SUNDIALS' libraries are there
         native = _native_available()
-    elif native:
-        _native_available()
     call = dict(locals())
     rescale = call.pop("atol_rescale")
     res = _run_ida(**call)
@@ -469,10 +472,9 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                                  kind_atol)
         if sol is not None and sol.status == DISPROVED:
             # a root that was the interpolant's only (``_relocate_root``): on from the re-integration's state, as after
-            # a contact, consistent on the constraints
+            # a contact
             t = float(sol.t[-1])
-            x, v, z = c.ode_lift(t, c.ode_state(np.asarray(sol.y[-1])), modes)
-            y, yp = c.assemble_y(t, x, v, z, modes)
+            y, yp = _on_constraints(c, t, np.asarray(sol.y[-1]), modes)
             continue
         if sol is not None and sol.status == 2:
             t_ev = float(sol.t_events[-1])
@@ -500,8 +502,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 # the dummy coordinates from the constraints, not from IDA's interpolant at the root: a steep
                 # position servo's dummy speed was 8.5e-7 rad/s off there (campaign seed 60005, 4e5 rad/s^3),
                 # and IDA failed its error test on that offset at every step size after the restart
-                x, v, z = c.ode_lift(t_ev, c.ode_state(y_ev), modes)
-                y, yp = c.assemble_y(t_ev, x, v, z, modes)
+                y, yp = _on_constraints(c, t_ev, y_ev, modes)
                 # one row: the state and (the law being continuous) the accelerations are the same on both
                 # sides; the consistent one, not IDA's interpolant, whose accelerations come from the old
                 # branch's polynomial (the power balance at the row was off by 4e-4 of its scale)
@@ -531,8 +532,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 guard.record(t, name)
             modes = new_modes
         else:
-            x, v, z = c.ode_lift(t, c.ode_state(y), modes)     # on the constraints (see the contact above)
-            y, yp = c.assemble_y(t, x, v, z, modes)
+            y, yp = _on_constraints(c, t, y, modes)     # (see the contact above)
         rec.add(t, y, yp, modes)
     stats.wall_time = time.perf_counter() - t0
     stats.events = len(events)
@@ -977,11 +977,9 @@ def _relocate_root(c, model, modes, opts, sol, record, t, y, yp, t_stop, grid, s
             merged = _Merged(sol, i_r, sol2)
             if sol2.status != 0 or float(merged.t[-1]) < t_stop:
                 merged.status = DISPROVED
-            rec_m = np.concatenate([record[:i_r + 1] if len(record) > i_r else np.ones(i_r + 1, bool), rec2[1:]])
-            return merged, rec_m[:len(merged.t)]
+            return merged, _merged_record(record, i_r, rec2, len(merged.t))
         sol = _Merged(sol, i_r, sol2)
-        record = np.concatenate([record[:i_r + 1] if len(record) > i_r else np.ones(i_r + 1, bool),
-                                 rec2[1:], np.ones(max(0, len(sol.t) - i_r - len(rec2)), bool)])[:len(sol.t)]
+        record = _merged_record(record, i_r, rec2, len(sol.t))
         best, best_record = sol, record
         recent, t = list(again.regmech_attempts[2]), t_r
     return best, best_record
@@ -1011,6 +1009,13 @@ def _reintegrate(c, modes, opts, atol_vec, t0, y0, yp0, t1, grid, bound, record_
     if sol.status < 0:
         return None
     return sol, rec, solver
+
+
+def _merged_record(record, i, second, n):
+    """The record flags of ``_Merged(first, i, second)``'s ``n`` rows: ``record``'s up to row ``i``, then
+    ``second``'s after its first row (rows beyond both recorded)."""
+    head = record[:i + 1] if len(record) > i else np.ones(i + 1, bool)
+    return np.concatenate([head, second[1:], np.ones(max(0, n - i - len(second)), bool)])[:n]
 
 
 class _Merged:

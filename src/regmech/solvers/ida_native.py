@@ -58,6 +58,7 @@ class _Libraries:
         # numba's import and the kernels' load from its on-disk cache (their compilation the first time on a
         # machine): about 0.5-1 s, 6 s the first time; the run that pays it says so (``load_time``)
         self.load_s = time.perf_counter() - t0
+        self.reported = False           # the call that loaded them has said so (``load_time``)
         self.K = K
         folder = os.path.join(os.path.dirname(os.path.dirname(sksundae.__file__)), "scikit_sundae.libs")
 
@@ -168,7 +169,7 @@ def load_time() -> float:
     """The seconds the compiled kernels took to load in this process, the first time it is asked after they loaded
     (the run that paid them reports them: ``Stats.extra["native_load_s"]``), else 0."""
     lib = _LIB
-    if isinstance(lib, _Libraries) and not getattr(lib, "reported", False):
+    if isinstance(lib, _Libraries) and not lib.reported:
         lib.reported = True
         return lib.load_s
     return 0.0

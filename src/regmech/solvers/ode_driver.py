@@ -1540,14 +1540,12 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
             out.row(t, y_ev, yp_ev, modes)
             crossed = np.zeros(guards.n_events, int)
             crossed[end.crossed] = -1
+            # every function not positive here with the one located (``_crossed_together``): surfaces at zero with
+            # the crossed one (two symmetric backlashes; a contact and the damper's saturation within it, which
+            # leave together) flip here with its event. Left to the next segment's start (``SurfaceSet.begin``),
+            # one exactly at zero there kept its side, started disarmed and was never seen to cross: its device's
+            # state then jumped at a later event, -1 -> +1
             f_crossed, s_crossed = guards.split(crossed)
-            if surf is not None and watch is not None and len(s_crossed):
-                # the surfaces at zero with the crossed one (two symmetric backlashes; a contact and the damper's
-                # saturation within it, which leave together): each flips here with its event. Left to the next
-                # segment's start (``SurfaceSet.begin``), one exactly at zero there keeps its side, starts
-                # disarmed and is never seen to cross: its device's state then jumped at a later event, -1 -> +1
-                also = watch.armed & (watch.values(t, u, modes) <= 0)
-                s_crossed = np.union1d(s_crossed, guards.split(np.where(also, -1, 0))[1])
             if len(s_crossed):
                 # a contact (a kink of a piecewise law): the state is continuous, the run goes on from it
                 for (comp, old, new, kind) in surf.cross(s_crossed):
