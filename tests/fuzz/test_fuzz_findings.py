@@ -1402,3 +1402,79 @@ def test_a_one_way_clutch_thrown_backward_by_an_impact_locks_in_it():
     assert _range_error(runs[0], runs[1], ("J2.w",), 0.05, 500) <= 1e-5
     res = m.simulate(0.05, dt_out=1e-4)         # the default call
     assert _range_error(res, runs[1], ("J2.w",), 0.05, 500) <= 1e-3
+
+
+def _lossy_planetary_on_a_hard_stop():
+    """Fuzz seed 93099 (``benchmarks/fuzz.py``), without its separate mass on an end stop and its clutch."""
+    from regmech.components import Backlash, Fixed, HardStop, LossyPlanetary, OneWayClutch
+    m = rm.Model("planetary_on_a_stop")
+    J1 = m.add(Inertia("J1", J=0.3138))
+    stop = m.add(HardStop("hstop1", lower=-0.1716, upper=0.03744, e=0.5421))
+    owc = m.add(OneWayClutch("owc1", mu=0.2074, peak=1.29, cgeo=0.7074, fn_max=170.9,
+                             f_normalized=Ramp(height=-0.624, duration=0.424, start_time=1.033, offset=0.8068)))
+    J3 = m.add(Inertia("J3", J=0.04078, w0=121.9))
+    J4 = m.add(Inertia("J4", J=0.5823, w0=0.1264, phi0=-0.08398))
+    bl = m.add(Backlash("bl1", c=1243.0, b=0.006721))
+    planetary = m.add(LossyPlanetary("lplanet1", ratio=4.061, loss_table=[[0.0, 0.866, 0.7123, 0.5215, 5.526],
+                                                                          [0.5154, 0.6597, 0.5171, 3.678, 22.32]]))
+    fixed = m.add(Fixed("fixed"))
+    J5 = m.add(Inertia("J5", J=0.5132))
+    drive = m.add(Torque("drive1", tau=Table([(0.0, 113.7), (0.111, -82.88), (1.739, 48.43)])))
+    m.connect(stop.flange, J1.flange_a)
+    m.connect(owc.flange_a, J1.flange_a)
+    m.connect(owc.flange_b, J3.flange_b)
+    m.connect(bl.flange_a, J4.flange_b)
+    m.connect(bl.flange_b, J3.flange_b)
+    m.connect(planetary.carrier, J1.flange_b)
+    m.connect(planetary.ring, fixed.flange)
+    m.connect(planetary.sun, J5.flange_a)
+    m.connect(drive.flange, J5.flange_a)
+    return m
+
+
+def test_a_gear_rolling_at_zero_speed_is_decided_again_when_its_holder_lets_go():
+    """Fuzz seed 93099: a hard stop holds the carrier of a lossy planetary, which rolls Backward at zero speed with a
+    relief event (``Holding._relief_events``). At t = 1.12075 the drive pulls the carrier off the stop. The gear kept
+    its mode (a relief device changed only by its own event), at a tie: its rolling law's acceleration -2e-10
+    rad/s^2. Under that law it then turned forward, its speed function negative from the restart, and ida at rtol
+    1e-10 refused the run at its end (w_rel = 0.84 rad/s against its mode); at rtol 1e-8 the root was found at once,
+    and the stuck gear broke away Backward on a loss torque 3e-10 N m past its limit and falling back inside. Now the
+    gear is stuck when its holder lets go (``ModeLogic._still_relieved``), and a break-away within round-off of a
+    limit is decided by the load a moment later (``ModeLogic._gear_tie_probe``)."""
+    from regmech.modes import STUCK
+    m = _lossy_planetary_on_a_hard_stop()
+    t_end, dt = 1.2, 0.001
+    res = m.simulate(t_end, dt_out=dt, solver="ida", rtol=1e-10, native=False)
+    release = next(e.t for e in res.events if e.component == "hstop1" and e.kind == "contact" and 1.1 < e.t < 1.2)
+    assert any(e.component == "lplanet1" and e.new_mode == STUCK and e.t == release for e in res.events), res.events
+    assert not energy_checks(res, m, rel=1e-6), energy_checks(res, m, rel=1e-6)
+    ref = m.simulate(t_end, dt_out=dt, solver="dop853", rtol=1e-8)
+    assert _range_error(res, ref, ("J1.w", "J3.w", "J5.w"), t_end) <= 1e-6
+
+
+@pytest.mark.parametrize("rtol", [3e-7, 1e-5])
+def test_ida_restarts_a_brake_reversing_under_a_position_servo(rtol):
+    """Calibration seed 6023, reduced to its translational half: a position servo (a callable reference) drives a mass
+    through zero speed with a Stribeck brake on it. The mode logic started from IDA's interpolant at the reversal,
+    whose dummy coordinates of the servo were off the constraints, and IDA failed its error test at every step size
+    after the restart (h = 4e-17 at t = 0.100 or 0.027); the message named M1 and servo1, not the brake, and advised
+    a tighter rtol. The logic now starts from the state lifted onto the constraints, as a contact's restart does."""
+    from regmech.components import LinearBrake, LinearPosition, Mass
+    from regmech.components.laws import Stribeck
+    m = rm.Model("servo_brake")
+    M1 = m.add(Mass("M1", m=33.94))
+    brake = m.add(LinearBrake("lbrake1", mu_law=Stribeck(mu_s=0.223, mu_k=0.1829, w_s=0.7301, mu_v=0.0, delta=2.0),
+                              fn_max=5.471, f_normalized=Table([(0.0, 0.59), (0.03745, 0.3038), (0.0822, 0.555),
+                                                                (0.0979, 0.2769), (0.2456, 0.2629), (0.403, 0.09596)])))
+    servo = m.add(LinearPosition("servo1", s_ref=lambda t: 0.154 + 0.134 * math.sin(86.05 * t + 2.366),
+                                 domain="translational"))
+    m.connect(brake.flange, M1.flange_a)
+    m.connect(servo.flange, M1.flange_a)
+    t_end, dt = 0.4754, 0.0003587924528301887
+    res = m.simulate(t_end, dt_out=dt, solver="ida", rtol=rtol, native=False)
+    reversals = [e.t for e in res.events if e.component == "lbrake1"]
+    assert len(reversals) == 13, res.events          # the servo's speed 11.5 cos(86.05 t + 2.366) passes zero 13 times
+    v_exact = 0.134 * 86.05 * np.cos(86.05 * res.t + 2.366)
+    assert np.max(np.abs(res["M1.v"] - v_exact)) <= 1e-6 * np.ptp(v_exact)
+    ref = m.simulate(t_end, dt_out=dt, solver="ida", rtol=1e-9)
+    assert _range_error(res, ref, ("servo1.f",), t_end) <= 1e-5

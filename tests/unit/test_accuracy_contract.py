@@ -527,5 +527,8 @@ def test_a_servo_rattling_in_a_hard_stop_meets_the_contract():
     res = m.simulate(0.1, dt_out=1e-4, solver="ida", accuracy=1e-4)
     ref = m.simulate(0.1, dt_out=1e-4, solver="ida", rtol=1e-11)
     assert res.stats.extra["grazing"]
+    # read on one grid: the runs' rows differ by their event instants, and a grazing series' count of rebounds with
+    # its rows differs between tolerances (40 and 43 here)
+    tg = np.linspace(0.0, 0.1, 1001)
     for name in ("J1.w", "J1.phi"):
-        assert np.max(np.abs(res[name] - ref[name])) <= 1e-4 * np.ptp(ref[name]), name
+        assert np.max(np.abs(res.at(name, tg) - ref.at(name, tg))) <= 1e-4 * np.ptp(ref.at(name, tg)), name

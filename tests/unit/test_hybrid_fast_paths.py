@@ -130,3 +130,42 @@ def test_small_event_functions_equal_the_vectorised_ones(one_way):
             for t in (0.05, 0.1, 0.2):             # the last one the segment's end (left limits)
                 y = rng.standard_normal(c.N)
                 np.testing.assert_array_equal(fr.event_values(t, y, y, modes), ref.event_values(t, y, y, modes))
+
+
+@pytest.mark.parametrize("small", [True, False])
+def test_a_device_sliding_or_freewheeling_at_exactly_zero_slip_has_its_function_armed(small):
+    """A first function that starts a segment at 0.0 is disarmed by the ODE driver until it is positive and left
+    inactive by IDA's root finding, so the slip could pass zero unseen: a device sliding, or a freewheel running free,
+    at exactly zero slip gets 1e-300 (the freewheel's was 0.0)."""
+    c = attach(clutches(one_way=True).compile())
+    fr = c.friction
+    if not small:
+        fr._small = None
+    y = np.zeros(c.N)            # every speed equal: every slip exactly zero
+    for modes in ([FORWARD, BACKWARD, FREE], [BACKWARD, FORWARD, FORWARD]):
+        modes = np.array(modes)
+        fr._small_for = fr._at_segment = None
+        fr.engaged = np.array([True, True, modes[2] == FORWARD])
+        c._t_right = 1.0
+        first = fr.event_values(0.1, y, y, modes)[0::2]
+        assert np.all(first > 0.0), first
+
+
+def test_a_run_ending_with_a_freewheel_turning_backward_is_refused():
+    """``check_final`` (and the check at every event) refuses a one-way clutch left free with a negative slip, which
+    a freewheel cannot have: its message names the clutch."""
+    c = attach(clutches(one_way=True).compile())
+    fr = c.friction
+    y = np.zeros(c.N)
+    v = np.zeros(c.n)
+    v[0] = 1.0
+    y[c.iv] = v
+    fr.check_final(0.5, y, y, np.array([STUCK, STUCK, FREE]))        # the sliding ones are fine at zero slip
+    for k in range(c.n):
+        v = np.zeros(c.n)
+        v[k] = 1.0
+        if fr.w_rel(v)[2] < 0:
+            break
+    y[c.iv] = v
+    with pytest.raises(rm.SimulationError, match="one-way clutch 'c2' would freewheel backward"):
+        fr.check_final(0.5, y, y, np.array([STUCK, STUCK, FREE]))

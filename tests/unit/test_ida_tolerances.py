@@ -211,3 +211,14 @@ def test_abs_max_agrees_with_numpy_for_short_and_long_arrays_nan_included():
                 y = x.copy()
                 y[k] = np.nan
                 assert math.isnan(abs_max(y))
+
+
+def test_an_ida_failure_after_an_event_names_the_devices_that_changed_there():
+    """Calibration seed 6023: IDA failed right after a brake's reversal, and the message named the masses with the
+    largest accelerations and the servo, not the brake. A segment that began at an event now says which."""
+    from regmech.result import Event
+    from regmech.solvers.ida import _restart_note
+    assert _restart_note([]) == ""
+    note = _restart_note([Event(0.100285582, "lbrake1", -1, 1, "mode"), Event(0.100285582, "hstop1", 0, 1, "contact")])
+    assert "t=0.100285582" in note and "lbrake1 Backward -> Forward" in note and "hstop1" in note
+    assert "solver='dop853'" in note

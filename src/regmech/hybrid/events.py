@@ -3,7 +3,8 @@
 Two functions per device, each crossing zero *downwards* when its mode must change:
 
 * stuck: ``tau0_max - |lam|`` (a freewheel: ``tau0_max - lam``, it holds any negative torque);
-* sliding: ``mode * w_rel``; free: 1 (a freewheeling one-way clutch: ``w_rel``, it locks at 0);
+* sliding: ``mode * w_rel``; free: 1 (a freewheeling one-way clutch: ``w_rel``, it locks at 0); a sliding or
+  freewheeling device at exactly zero slip gets ``1e-300`` (armed, see ``event_values``);
   held: 1 (the holders' functions decide);
 * sliding at zero speed while other devices hold the motion (``Holding._relief_events``):
   ``mode * s * lam_holder + tol``, crossing when the holder starts to resist this
@@ -153,7 +154,7 @@ class EventFunctions:
                 w = 0.0
                 for k, cf in row:
                     w += cf * y[k]
-                out.append(w)
+                out.append(w if w != 0.0 else 1e-300)
             out.append(fn if engaged else (-fn if fn != 0.0 else 1e-300))
         for o, il, ms, tol in relief:
             out[o] = ms * y[il] + tol
@@ -193,7 +194,9 @@ class EventFunctions:
         first[slide & (first == 0.0)] = 1e-300
         first[st_ow] = caps[st_ow, 1] - lam[st_ow]
         first[st_2w] = caps[st_2w, 1] - np.abs(lam[st_2w])
-        first[fr_ow] = w[fr_ow]
+        # a freewheel left free at exactly zero slip: 1e-300, as a sliding device's (a function starting a segment at
+        # zero is disarmed by the ODE driver until positive and left inactive by IDA: it would turn backward unseen)
+        first[fr_ow] = np.where(w[fr_ow] != 0.0, w[fr_ow], 1e-300)
         first[fr_2w] = 1.0
         second = fns.copy()
         off = ~self.engaged

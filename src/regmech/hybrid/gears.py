@@ -13,9 +13,10 @@ import numpy as np
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
 
 
-def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impacted=False):
+def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impacted=False, at_rest=False):
     """The gear's mode after the crossings found at an event (step 1 of ``settle``); ``impacted``: a hard stop's
-    impulse changed the speeds at this event (``impacts``)."""
+    impulse changed the speeds at this event (``impacts``); ``at_rest``: its relative acceleration is round-off and
+    no relief event keeps it rolling (``ModeLogic._still_relieved``)."""
     if dev.ideal:
         return FREE
     if initial or old == FREE or old == HELD:
@@ -27,8 +28,10 @@ def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impac
         # threw it from 9.3 to -3.7 rad/s): it rolls the other way now, as a friction device slides
         return -old
     # found by the root finder, or within round-off of zero and still approaching it, or already
-    # past it by round-off (another device's root, located on the far side, at the same instant)
-    if crossed1 or (abs(w) <= scale and (w * arel < 0 or old * w < 0)):
+    # past it by round-off (another device's root, located on the far side, at the same instant), or at rest
+    # there (its acceleration round-off, its side a tie): stuck, it has its static limits, and the break-away
+    # test of ``settle`` decides, by where the load goes at a tie (``ModeLogic._gear_tie_probe``)
+    if crossed1 or (abs(w) <= scale and (w * arel < 0 or old * w < 0 or at_rest)):
         return STUCK
     return old
 

@@ -28,6 +28,9 @@ from .impacts import RELEASE_TOL
 PROBE_EDGE = 1e-6
 #: the probe's time step, relative to max(1, |t|) [s]
 PROBE_DT = 1e-7
+#: a stuck lossy gear whose loss torque is past its limit by no more than this fraction of its torques is at a tie:
+#: its load a moment later decides (``_gear_tie_probe``)
+GEAR_TIE = 1e-9
 
 
 class ModeLogic:
@@ -121,8 +124,8 @@ class ModeLogic:
         scale = 1e-9 * max(1.0, abs_max(v))
         # devices sliding at zero speed while another one holds the motion (see _relief_events):
         # their speed is zero by the holder's constraint, so its round-off sign says nothing;
-        # only their relief event (or an event of the holder, below) changes them
-        relief = set() if initial else {j for j, *_ in self._relief}
+        # only their relief event, or their holder letting go (``_still_relieved``), changes them
+        relief = set() if initial else self._still_relieved(new, crossed)
         for j in relief:
             w[j] = 0.0
         # round-off of the relative accelerations (a device at rest, held by others, has |a_rel| below it)
@@ -134,7 +137,8 @@ class ModeLogic:
             engaged = self._law("normal_force", j, q, t, left) > 0
             if dev.coupled:
                 new[j] = gear_first_step(dev, int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
-                                         initial, scale, arel[j], impacted)
+                                         initial, scale, arel[j], impacted,
+                                         at_rest=abs(arel[j]) <= a_tol and j not in relief)
                 if old[j] in (FORWARD, BACKWARD) and new[j] == old[j] and crossed[2 * j + 1] != 0:
                     self.quadrant[j] = -self.quadrant[j]   # the driving side changed (checked in step 2)
                 continue
@@ -209,6 +213,11 @@ class ModeLogic:
                 if dev.coupled:
                     if new[j] == STUCK:
                         d = dev.breakaway(lam_f[j], lam[self.coupled[j]])
+                        if d and self._gear_at_tie(dev, d, lam_f[j], lam[self.coupled[j]]):
+                            # beyond its limit by round-off only: where the load goes decides (as for a friction
+                            # device at its capacity), read a moment later; after another change in this pass the
+                            # torques are stale and the next pass decides
+                            d = 0 if changed else self._gear_tie_probe(j, dev, t, x, v, z, new, a, dz)
                         if d:
                             new[j] = d
                             changed = True
@@ -310,6 +319,22 @@ class ModeLogic:
         self._relief = self._relief_events(t, y, yp, new, scale, view)
         return y, yp, new, scale, view
 
+    def _still_relieved(self, new, crossed):
+        """The devices whose relief event (``_relief_events``) still stands at this event: its holder is still stuck
+        after the hard stops' step (``new``) and its break-away function did not cross. A device whose holder let go
+        is at rest on its own and is decided like any other (fuzz seed 93099: a lossy planetary rolling Backward at
+        zero speed while a hard stop held its carrier kept that mode when the stop released it, its acceleration
+        -2e-10 rad/s^2 at a tie, and turned forward under its backward law)."""
+        if not self._relief:
+            return set()
+        holder = {int(il): h for h, il in enumerate(self.c.ilam[self.offset:])}
+        out = set()
+        for j, il, *_ in self._relief:
+            h = holder.get(int(il))
+            if h is None or (new[h] == STUCK and crossed[2 * h] == 0):
+                out.add(j)
+        return out
+
     def _law(self, name, j, q, t, left):
         """``devices[j].<name>(t, left[, q_j])`` (``normal_force``, ``capacities``): for a device without inputs
         from the state (its laws depend on t and the side only) kept for the rest of this ``settle``, which asks
@@ -390,6 +415,34 @@ class ModeLogic:
                 out.append((j, d))
         return out
 
+    @staticmethod
+    def _gear_at_tie(dev, d, sa, lam_g):
+        """Whether a stuck lossy gear's loss torque ``sa`` is beyond its limit in direction ``d`` by no more than
+        ``GEAR_TIE`` of its torques (round-off of the KKT solve and of IDA's algebraic variables)."""
+        hi, lo = dev.limits(sa, lam_g)
+        excess = sa - hi if d == FORWARD else lo - sa
+        return excess <= GEAR_TIE * max(1.0, abs(sa), abs(lam_g))
+
+    def _gear_tie_probe(self, j, dev, t, x, v, z, modes, a, dz):
+        """The break-away of stuck lossy gear ``j`` at a tie, decided by its load a moment later (``PROBE_DT``) on the
+        state advanced by its rates, in ``modes`` (the gear stuck): FORWARD/BACKWARD, or 0 to stay stuck.
+
+        Why: at a tie the side of the limit the solve lands on is round-off. Fuzz seed 93099: a hard stop released
+        a lossy planetary's carrier with the gear's loss torque 3e-10 N m (6e-11 of it) past its backward limit and
+        falling back inside; it rolled Backward at zero speed, its rolling law's acceleration -2e-10 rad/s^2, and
+        then turned forward under that law, its speed function negative from the start, until the next event
+        refused the run 0.21 s later (w_rel 3.9 rad/s against its mode)."""
+        dt = PROBE_DT * max(1.0, abs(t))
+        try:
+            _, lam2, _ = self.c.accelerations(t + dt, x + v * dt, v + a * dt, z + dz * dt, modes)
+        except StructureError:
+            return dev.breakaway(*self._gear_torques(j, self.c.accelerations(t, x, v, z, modes)[1]))
+        return dev.breakaway(*self._gear_torques(j, lam2))
+
+    def _gear_torques(self, j, lam):
+        """(loss torque, mesh force) of lossy gear ``j`` in the multipliers ``lam``."""
+        return lam[self.offset + j], lam[self.coupled[j]]
+
     def _slide_direction(self, dev, qj, t, left, sign):
         """The mode of a stuck device whose load passes its capacity in direction ``sign`` (+1 / -1): FORWARD
         (FREE for a one-way device without normal force) or BACKWARD (0, no change, for a one-way device,
@@ -439,8 +492,8 @@ class ModeLogic:
         self._check_sliding_sides(t, (w.tolist(), None, None, abs_max(w)), modes, 1e-9 * max(1.0, abs_max(v)))
 
     def _check_sliding_sides(self, t, view, modes, scale):
-        """Refuse a restart with a device sliding (or a lossy gear rolling) against its own direction beyond
-        round-off.
+        """Refuse a restart with a device sliding (or a lossy gear rolling) against its own direction, or a one-way
+        clutch freewheeling backward, beyond round-off.
 
         Its kinetic torque would then drive the motion (a friction element supplying power) and its
         event function, already past zero, would never fire: the run would go on silently wrong (fuzz
@@ -449,6 +502,12 @@ class ModeLogic:
         w, _, _, w_max = view
         limit = -max(scale, 1e-12 * w_max)
         for j, (mode, dev) in enumerate(zip(np.asarray(modes).tolist(), self.devices)):
+            if mode == FREE and dev.one_way and j not in self._stop_set and w[j] < limit:
+                raise SimulationError(
+                    f"stick/slip logic at t={t:.9g}: one-way clutch '{dev.name}' would freewheel backward with "
+                    f"w_rel = {w[j]:.6g}, which a freewheel cannot do (it locks at w_rel = 0). This is a gap in "
+                    f"regmech's mode logic: please report it with the model. The other kind of solver ('ida' or "
+                    f"'dop853': they find events differently) or a tighter tolerance may avoid the instant.")
             if mode not in (FORWARD, BACKWARD):
                 continue
             if mode * w[j] < limit:

@@ -337,11 +337,12 @@ def _blame(c, y, yp):
     return names
 
 
-def _on_constraints(c, t, y, modes):
+def _on_constraints(c, t, y, modes, rates=True):
     """A consistent restart ``(y, y')`` at ``t`` from the state of ``y``: its dummy coordinates from the constraints,
-    its accelerations and algebraic unknowns from the laws of ``modes``, not from IDA's interpolant."""
+    its accelerations and algebraic unknowns from the laws of ``modes``, not from IDA's interpolant (``rates``: see
+    ``CompiledSystem.assemble_y``)."""
     x, v, z = c.ode_lift(t, c.ode_state(y), modes)
-    return c.assemble_y(t, x, v, z, modes)
+    return c.assemble_y(t, x, v, z, modes, rates=rates)
 
 
 def _native_available() -> bool:
@@ -469,7 +470,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 for (name, old, new, kind) in surf.begin(t, y):      # reached at another event's instant
                     events.append(Event(t, name, old, new, kind))
             sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse, deadline,
-                                 kind_atol)
+                                 kind_atol, [e for e in events[-8:] if e.t == t])
         if sol is not None and sol.status == DISPROVED:
             # a root that was the interpolant's only (``_relocate_root``): on from the re-integration's state, as after
             # a contact
@@ -489,6 +490,15 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 for (name, old, new, kind) in surf.cross(s_crossed):
                     events.append(Event(t_ev, name, old, new, kind))
             if friction_hit:
+                # the mode logic starts from the dummy coordinates on the constraints, as a contact's restart
+                # below: from IDA's interpolant, a position servo's were off, and IDA failed its error test at
+                # every step size after the restart (calibration seed 6023, a brake reversing under a servo)
+                # (the rates of the algebraic unknowns stay IDA's: the logic reads the holding torques' rates; without
+                # position or speed constraints there are no dummy coordinates to put right)
+                if c.mp + c.mv:
+                    y_on, yp_on = _on_constraints(c, t_ev, y_ev, modes, rates=False)
+                    yp_on[c.ilam], yp_on[c.iad] = yp_ev[c.ilam], yp_ev[c.iad]
+                    y_ev, yp_ev = y_on, yp_on
                 y, yp, new_modes, changes = fr.settle(t_ev, (y_ev, yp_ev), modes, crossed=f_crossed)
                 for (name, old, new, kind, *value) in changes:
                     events.append(Event(t_ev, name, old, new, kind, value=value[0] if value else None))
@@ -747,9 +757,20 @@ def _reusable(reuse, modes, atol_vec):
     return reuse["solver"]
 
 
+def _restart_note(started_by):
+    """What an IDA failure's message adds when the segment began at an event (``started_by``: its events): the
+    devices that changed there, which the largest accelerations and forces need not name."""
+    if not started_by:
+        return ""
+    changes = "; ".join(str(e).split(": ", 1)[-1] for e in started_by[:4])
+    return (f" The segment began at the event at t={started_by[0].t:.9g} ({changes}): if IDA fails right after it, "
+            f"the other kind of solver (solver='dop853') or the default call (accuracy=...) may take that restart.")
+
+
 def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse=None, deadline=None,
-                   kind_atol=None):
-    """One IDA run from t to t_stop (or to the first mode event); records the output rows.
+                   kind_atol=None, started_by=()):
+    """One IDA run from t to t_stop (or to the first mode event); records the output rows. ``started_by``: the events
+    at ``t`` (named by a failure's message).
 
     After a mode event the solver is a fresh one: scikit-sundae's event bookkeeping lives on the
     events function and accumulates across ``solve`` calls. After a time event with the modes
@@ -802,7 +823,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         except (RuntimeError, ValueError, KeyError) as exc:
             raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r};"
                                   f"{sundials_log.said(lines)} components most involved: "
-                                  f"{_blame(c, y, yp)}") from exc
+                                  f"{_blame(c, y, yp)}.{_restart_note(started_by)}") from exc
     if reuse is not None and sol.status not in (0, 1) and not native:
         reuse.clear()            # a mode event (its bookkeeping stays on the events function) or a failure
     stats.segments += 1
@@ -823,7 +844,8 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         hint = hint.rstrip(".")
         raise SimulationError(
             f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}{sundials_log.said(lines)}; "
-            f"components most involved: {_blame(c, last_y, last_yp)}. {hint}.{c.stiffness_hint()}")
+            f"components most involved: {_blame(c, last_y, last_yp)}. {hint}.{_restart_note(started_by)}"
+            f"{c.stiffness_hint()}")
     if lines:
         # an error line from a solve that went on (none is known to occur): not dropped silently
         warnings.warn(f"IDA reported at t={t:.9g}..{t_stop:.9g} in model '{model.name}':"
