@@ -62,6 +62,9 @@ class Event:
     #: ``kind`` "impact" (a ``HardStop`` reaching a limit, ``new_mode`` +1 upper / -1 lower): the kinetic energy
     #: the impact dissipated [J], booked in the stop's ``heat``; None otherwise
     value: float | None = None
+    #: ``kind`` "impact": ``((device, J), ...)``, the work the impulse of a motion source on the stop's path did on
+    #: the masses at the instant (it keeps its speed through the impulse; ``Result.impulse_work``); None: none
+    work: tuple | None = None
 
     def __str__(self):
         err = "" if self.t_error is None else f" (+-{self.t_error:.2g} s)"
@@ -193,14 +196,29 @@ class Result:
         on (the last row at the event's instant). Part of the device's ``heat``."""
         hits = [(ev.t, ev.value) for ev in self.events if ev.kind == "impact" and ev.component == device
                 and ev.value is not None]
+        return self._jumps(hits)
+
+    def impulse_work(self, device: str):
+        """The work [J] the impulses of hard stops' impacts made ``device`` (a motion source on a stop's path, which
+        keeps its speed through an impulse) do on the masses up to each output row, or None when they made it do
+        none: the sum of its entries in ``Event.work`` of the "impact" events, each from the row after the impact on.
+        ``res.integral('<device>.power')`` includes it (as ``-`` its jumps: ``power`` is what the device absorbs),
+        so the work of a source, ``-res.integral('motor.power')``, closes the books across impacts."""
+        hits = [(ev.t, w) for ev in self.events if ev.kind == "impact" and ev.work
+                for name, w in ev.work if name == device]
+        return self._jumps(hits)
+
+    def _jumps(self, hits):
+        """``[(t, J)]`` as a cumulative sum over the output rows, each from the row after its instant on (the last
+        row at the instant), or None without any."""
         if not hits:
             return None
         out = np.zeros(len(self.t))
-        for t_ev, loss in hits:
+        for t_ev, amount in hits:
             k = int(np.searchsorted(self.t, t_ev, side="right")) - 1
             if k >= 0 and self.t[k] < t_ev:
                 k += 1          # no row at the event (a result thinned after the run): from the next row on
-            out[max(k, 0):] += loss
+            out[max(k, 0):] += amount
         return out
 
     def _with_impacts(self, name: str, val):
@@ -221,6 +239,14 @@ class Result:
         several at once (they share the work)."""
         hit = self.integrals([name], tol=tol)[name]
         return hit if error else hit[0]
+
+    def _with_impulses(self, name: str, val):
+        """The integral of a motion source's ``power``: minus the work its impulses did at impacts
+        (``impulse_work``), as jumps."""
+        if not name.endswith(".power"):
+            return val
+        jumps = self.impulse_work(name[:-len(".power")])
+        return val if jumps is None else (np.asarray(val[0], dtype=float) - jumps, val[1])
 
     def integrals(self, names, tol: float | None = None) -> dict:
         """``{name: (values, estimate)}`` of ``integral`` for several signals at once (``tol``: as there)."""
@@ -251,7 +277,7 @@ class Result:
             q["signals"] += len(todo)
             for k, v in counts.items():
                 q[k] = q.get(k, 0) + v
-        return {nm: self._cache[("integral", nm, tol)] for nm in names}
+        return {nm: self._with_impulses(nm, self._cache[("integral", nm, tol)]) for nm in names}
 
     def _quadrature_tol(self) -> float:
         """The relative error ``integral`` aims at: the run's accuracy, else its rtol, else 1e-6."""

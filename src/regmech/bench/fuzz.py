@@ -1139,7 +1139,7 @@ def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> 
       power scale is the largest ``sum |terms|`` over the output instants).
     * Books: ``K(t) - K(0) + V(t) - V(0) + D(t) = W(t)`` with K the kinetic energy (``.kinetic``), V the
       stored energy (``.potential`` of the devices that have one), W the work of the sources
-      ``-int P_src`` and D the dissipation ``int P_other - (V(t) - V(0))``; within ``ENERGY_FACTOR * rel``
+      ``-int P_src`` (with their work at impacts, ``Result.impulse_work``) and D the dissipation ``int P_other - (V(t) - V(0))``; within ``ENERGY_FACTOR * rel``
       of the energy scale (the largest of ``int sum |P|``, K and |V|) plus ``QUAD_SAFETY`` times the
       quadrature error estimate (``integrate``).
     * Loss signs: every friction or loss element absorbs ``P_d >= -LOSS_FACTOR * rel * power scale`` at
@@ -1212,6 +1212,11 @@ def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> 
             impacts = impacts + jumps
         per_dev[name] = (dev, cum - (0.0 if pot is None else pot - pot[0]), qe, p)
     work, qe_w = integrate(t, -src)
+    for name, (dev, _) in powers.items():
+        # a motion source's work at impacts, at an instant (``Result.impulse_work``; fuzz seed 94074)
+        jumps = res.impulse_work(name) if dev.is_source and callable(getattr(res, "impulse_work", None)) else None
+        if jumps is not None:
+            work = work + jumps
     absorbed, qe_o = integrate(t, other)
     absorbed = absorbed + impacts
     dissipated = absorbed - (stored - stored[0])

@@ -501,7 +501,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                     y_ev, yp_ev = y_on, yp_on
                 y, yp, new_modes, changes = fr.settle(t_ev, (y_ev, yp_ev), modes, crossed=f_crossed)
                 for (name, old, new, kind, *value) in changes:
-                    events.append(Event(t_ev, name, old, new, kind, value=value[0] if value else None))
+                    events.append(Event(t_ev, name, old, new, kind, value=value[0] if value else None,
+                                        work=value[1] if len(value) > 1 else None))
                 # a crossing that changed nothing restarts IDA all the same: counted as silent
                 guard.record_settle(t_ev, changes, f_crossed, fr.devices)
                 modes = new_modes
@@ -538,7 +539,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
         if fr:
             y, yp, new_modes, changes = fr.settle(t, (y, yp), modes)
             for (name, old, new, kind, *value) in changes:
-                events.append(Event(t, name, old, new, kind, value=value[0] if value else None))
+                events.append(Event(t, name, old, new, kind, value=value[0] if value else None,
+                                    work=value[1] if len(value) > 1 else None))
                 guard.record(t, name)
             modes = new_modes
         else:
