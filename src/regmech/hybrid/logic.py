@@ -217,7 +217,7 @@ class ModeLogic:
                             # beyond its limit by round-off only: where the load goes decides (as for a friction
                             # device at its capacity), read a moment later; after another change in this pass the
                             # torques are stale and the next pass decides
-                            d = 0 if changed else self._gear_tie_probe(j, dev, t, x, v, z, new, a, dz)
+                            d = 0 if changed else self._gear_tie_probe(j, dev, d, t, x, v, z, new, a, dz)
                         if d:
                             new[j] = d
                             changed = True
@@ -423,9 +423,10 @@ class ModeLogic:
         excess = sa - hi if d == FORWARD else lo - sa
         return excess <= GEAR_TIE * max(1.0, abs(sa), abs(lam_g))
 
-    def _gear_tie_probe(self, j, dev, t, x, v, z, modes, a, dz):
+    def _gear_tie_probe(self, j, dev, d, t, x, v, z, modes, a, dz):
         """The break-away of stuck lossy gear ``j`` at a tie, decided by its load a moment later (``PROBE_DT``) on the
-        state advanced by its rates, in ``modes`` (the gear stuck): FORWARD/BACKWARD, or 0 to stay stuck.
+        state advanced by its rates, in ``modes`` (the gear stuck): FORWARD/BACKWARD, or 0 to stay stuck (``d``, the
+        side found at the instant, when the moment later admits no motion).
 
         Why: at a tie the side of the limit the solve lands on is round-off. Fuzz seed 93099: a hard stop released
         a lossy planetary's carrier with the gear's loss torque 3e-10 N m (6e-11 of it) past its backward limit and
@@ -436,12 +437,8 @@ class ModeLogic:
         try:
             _, lam2, _ = self.c.accelerations(t + dt, x + v * dt, v + a * dt, z + dz * dt, modes)
         except StructureError:
-            return dev.breakaway(*self._gear_torques(j, self.c.accelerations(t, x, v, z, modes)[1]))
-        return dev.breakaway(*self._gear_torques(j, lam2))
-
-    def _gear_torques(self, j, lam):
-        """(loss torque, mesh force) of lossy gear ``j`` in the multipliers ``lam``."""
-        return lam[self.offset + j], lam[self.coupled[j]]
+            return d
+        return dev.breakaway(lam2[self.offset + j], lam2[self.coupled[j]])
 
     def _slide_direction(self, dev, qj, t, left, sign):
         """The mode of a stuck device whose load passes its capacity in direction ``sign`` (+1 / -1): FORWARD

@@ -1314,10 +1314,11 @@ def segment_radius(problem, t, u):
     (``scipy_ivp.stability_cap``), or None: exact up to ``EXACT_BELOW`` states, the cheap upper bound
     (``spectral_bound``) beyond, the kept radius of the linear form (constant).
 
-    Why at every segment: a mode or a contact changes the fastest motion. Fuzz seed 92005: the cap was taken from
-    the radius at the run's start, 303 1/s with an elastic gap open; with the gap closed it is 1341 1/s, and DOP853
-    at rtol 1e-8 took its first step after a Pulse edge at h rho = 5.7, near its stability limit, where its error
-    estimate passed an endpoint 2,000 times its tolerance off (rows 7e-4 of the range off; 8e-6 at rtol 1e-6)."""
+    Why again during a run: a mode, a contact or a nonlinear law's state changes the fastest motion. Fuzz seed
+    92005: the cap was taken from the radius at the run's start, 303 1/s (a clutch's thermal state); a Magic
+    Formula wheel's slip later made it 1,330-1,490 1/s, and DOP853 at rtol 1e-8 took its first step after a Pulse
+    edge at h rho = 5.7, near its stability limit, where its error estimate passed an endpoint 2,000 times its
+    tolerance off (rows 7e-4 of the range off; 8e-6 at rtol 1e-6). When it is asked: ``scipy_ivp``."""
     from ..compile.odeform import ode_form
     if ode_form(problem.c).linear:
         return spectral_radius(problem, t, u)
