@@ -56,9 +56,9 @@ to 4.0e-7 of the range at rtol 1e-8 and 1.7e-5 at 1e-6 for 16 % more steps
 stiff for the method never meets the cap. RK45 and RK23 keep their steps
 (errors 3e-6 and 4e-4 of the range there, within their tolerances' reach).
 On a nonlinear model the radius is taken again (``ode_driver.segment_radius``)
-at a segment's start when its friction modes or contacts differ from those of
-the last radius, or ``RECAP_STEPS`` (64) steps have passed since, and within a
-segment every ``RECAP_STEPS`` steps: fuzz seed 92005's Magic Formula wheel
+at a segment's start when its friction modes differ from those of the last
+radius (not its contacts: ``_dynamics_key``), or ``RECAP_STEPS`` (64) steps
+have passed since, and within a segment every ``RECAP_STEPS`` steps: fuzz seed 92005's Magic Formula wheel
 made it 1,330-1,490 1/s where the start's was 303, and DOP853 at rtol 1e-8,
 stepping at h rho = 5.7 after a Pulse edge, returned rows 6.9e-4 of the range
 off (now 6.8e-9). The cap is never looser than the start's. The linear
@@ -365,11 +365,15 @@ def _refuse_if_stiff(name, method, problem, t0, u0, t_end, max_steps, rtol=None)
 
 
 def _dynamics_key(problem):
-    """The friction modes and the sides of the piecewise laws' surfaces (contacts) of the current segment: what
-    changes the ODE form's dg/du from one segment to the next, besides the state of a nonlinear law."""
-    surfaces = problem.c.__dict__.get("surfaces")
-    return (np.asarray(problem.modes).tobytes(),
-            None if surfaces is None else np.asarray(surfaces.sides).tobytes())
+    """The friction modes of the current segment: what changes the ODE form's dg/du from one segment to the next,
+    besides the state of a nonlinear law.
+
+    Not the sides of the piecewise laws' surfaces (contacts), although a contact's stiffness moves the radius too: with
+    them, fuzz seed 95096 (an end stop's 5.7 ms contacts, radius 9 -> 535-757 1/s) came out 2.1e-6 of the range off at
+    rtol 1e-10 where it was 1.4e-7 with the start's cap, and 1.1e-8 to 1.1e-7 with this key (every ``RECAP_STEPS``
+    steps inside a contact still sees its stiffness). Why the contacts' own radius made it worse is not understood (a helper's
+    campaign; its segments went from 118 to 120)."""
+    return np.asarray(problem.modes).tobytes()
 
 
 def _scipy_options(method) -> OptionSet:
@@ -425,9 +429,9 @@ def _scipy_solver(method, name=None, cls=None):
                 step_opts["first_step"] = min(step_opts["first_step"], t_bound - t0)
             rho = start_radius[0] if start_radius else None
             recap = None
-            if method in CAPPED and rho and not ode_form(problem.c).linear:
-                # a nonlinear law's stiffness moves with the state, a mode or a contact with the segment: the radius
-                # again at a segment's start when its modes or contacts differ from the last radius's or when
+            if method in CAPPED and rho is not None and not ode_form(problem.c).linear:
+                # a nonlinear law's stiffness moves with the state, a mode with the segment: the radius again at a
+                # segment's start when its friction modes differ from the last radius's (``_dynamics_key``) or when
                 # ``RECAP_STEPS`` steps have passed since, and within a segment every ``RECAP_STEPS`` steps; never
                 # below the start's (the cap only tightens: calibration seed 9's tyre, whose later radius was lower,
                 # was interpolated 10 times further off at rtol 1e-6 with the looser cap)
@@ -442,7 +446,8 @@ def _scipy_solver(method, name=None, cls=None):
 
                 def recap(t, u):
                     last.update(rho=max(rho0, segment_radius(problem, t, u) or 0.0), steps=budget.steps)
-                    return min(limit, stability_cap(method, last["rho"], rtol))
+                    now = stability_cap(method, last["rho"], rtol)       # None: no stiffness, no cap
+                    return limit if now is None else min(limit, now)
             cap = stability_cap(method, rho, rtol)
             if cap is not None:
                 step_opts["max_step"] = min(step_opts.get("max_step", np.inf), cap)
