@@ -1620,9 +1620,10 @@ def test_dop853s_cap_on_an_end_stops_contacts_keeps_its_accuracy():
     """Fuzz seed 95096 (helper's campaign from seed 95000), the first 0.3 s: an end stop's 5.7 ms contacts raise the
     spectral radius from 9 to 535-757 1/s. With the cap taken again at every contact change, DOP853 at rtol 1e-10
     came out 1.3e-6 of J1.w's range off (1.1e-7 with the start's cap); taken again on friction-mode changes and every
-    ``RECAP_STEPS`` steps (``scipy_ivp._dynamics_key``), 1.1e-8, or 1.1e-7 in a process that ran an IDA model
-    before (round-off of something that run leaves, not found, moves the step sequence: 728 or 738 steps; the
-    contact-keyed cap stays at 1.3e-6 either way). The bound sits between, a factor 3 from each."""
+    ``RECAP_STEPS`` steps (``scipy_ivp._dynamics_key``), 1.1e-8, or 1.1e-7 in a process that has imported numba
+    before (``dopri.compiled_passes`` then sums a small model's stages compiled, in another order: 738 steps
+    instead of 728; the contact-keyed cap stays at 1.3e-6 either way). The bound sits between, a factor 3 from
+    each."""
     from regmech.components import ElectricMotor, EndStop, Fixed, FrictionContact, LinearSpeed, Mass
     from regmech.signals import Constant, Pulse
     m = rm.Model("end_stop_contacts")
