@@ -169,3 +169,14 @@ def test_a_run_ending_with_a_freewheel_turning_backward_is_refused():
     y[c.iv] = v
     with pytest.raises(rm.SimulationError, match="one-way clutch 'c2' would freewheel backward"):
         fr.check_final(0.5, y, y, np.array([STUCK, STUCK, FREE]))
+
+
+def test_a_run_ending_with_a_non_finite_speed_is_refused_by_name():
+    """``check_final``: a NaN speed passes every sign comparison, so it is refused before them, naming the mass."""
+    c = attach(clutches(one_way=True).compile())
+    y = np.zeros(c.N)
+    v = np.zeros(c.n)
+    v[1] = np.nan
+    y[c.iv] = v
+    with pytest.raises(rm.SimulationError, match=f"non-finite speeds of \\['{c.structure.coord_names[1]}'\\]"):
+        c.friction.check_final(0.5, y, y, np.array([STUCK, STUCK, FREE]))

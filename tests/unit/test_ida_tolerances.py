@@ -218,7 +218,10 @@ def test_an_ida_failure_after_an_event_names_the_devices_that_changed_there():
     largest accelerations and the servo, not the brake. A segment that began at an event now says which."""
     from regmech.result import Event
     from regmech.solvers.ida import _restart_note
-    assert _restart_note([]) == ""
-    note = _restart_note([Event(0.100285582, "lbrake1", -1, 1, "mode"), Event(0.100285582, "hstop1", 0, 1, "contact")])
+    assert _restart_note([], 0.1) == ""
+    earlier = Event(0.05, "brake2", 0, 1, "mode")
+    assert _restart_note([earlier], 0.100285582) == ""          # a segment that began at a time event
+    note = _restart_note([earlier, Event(0.100285582, "lbrake1", -1, 1, "mode"),
+                          Event(0.100285582, "hstop1", 0, 1, "contact")], 0.100285582)
     assert "t=0.100285582" in note and "lbrake1 Backward -> Forward" in note and "hstop1" in note
-    assert "solver='dop853'" in note
+    assert "solver='dop853'" in note and "brake2" not in note

@@ -1139,8 +1139,8 @@ def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> 
       power scale is the largest ``sum |terms|`` over the output instants).
     * Books: ``K(t) - K(0) + V(t) - V(0) + D(t) = W(t)`` with K the kinetic energy (``.kinetic``), V the
       stored energy (``.potential`` of the devices that have one), W the work of the sources
-      ``-int P_src`` (with their work at impacts, ``Result.impulse_work``) and D the dissipation ``int P_other - (V(t) - V(0))``; within ``ENERGY_FACTOR * rel``
-      of the energy scale (the largest of ``int sum |P|``, K and |V|) plus ``QUAD_SAFETY`` times the
+      ``-int P_src`` (with their work at impacts, ``Result.impulse_work``) and D the dissipation
+      ``int P_other - (V(t) - V(0))``; within ``ENERGY_FACTOR * rel`` of the energy scale (the largest of ``int sum |P|``, K and |V|) plus ``QUAD_SAFETY`` times the
       quadrature error estimate (``integrate``).
     * Loss signs: every friction or loss element absorbs ``P_d >= -LOSS_FACTOR * rel * power scale`` at
       every output instant; an element with storage and loss has a non-decreasing D_d and an ideal

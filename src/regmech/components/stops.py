@@ -226,8 +226,8 @@ class HardStop(FrictionDevice):
     restitution), applied through the model's own mass matrix and constraints; a motion source on the
     stop's path keeps its speed through the impulse (its impulsive work is not in the stop's heat, which
     books only ``-P (w- + w+) / 2``, but in the impact's ``Event.work``, ``Result.impulse_work`` and the
-    source's ``res.integral('<source>.power')``: the books close); a hard stop is a friction row of the hybrid layer (Free / Stuck),
-    so a holding stop takes part in the holding-torque solve like a stuck brake.
+    source's ``res.integral('<source>.power')``: the books close); a hard stop is a friction row of the hybrid
+    layer (Free / Stuck), so a holding stop takes part in the holding-torque solve like a stuck brake.
     """
 
     impact = True

@@ -57,7 +57,6 @@ class Impacts:
         self._stop_wmax = np.zeros(self.mf)          # largest impact speed of each stop in the run
         self._stop_last = np.full(self.mf, -math.inf)  # time of each stop's last impact
         self._impact_log = []                        # (name, old, new, "impact", loss, work) of the current settle
-        self._impulse_work = np.zeros(self.c.Gpv.shape[0])
 
     def rel_positions(self, x):
         """Relative positions ``G_f x + offset`` of the rows."""
@@ -143,14 +142,13 @@ class Impacts:
         against the stop otherwise kept it bouncing at the speed where the two balance, sqrt(2 a_in delta /
         (1 - e^2)), for ever). A rebound that cannot rise above ``delta`` is a contact (the Zeno rule's third
         clause)."""
-        self._impulse_work = np.zeros(self.c.Gpv.shape[0])      # per rigid row, over this impact (``_project_row``)
         w_in = max(side * w, 0.0)          # a crossing located a hair late on a grazing touch: no speed into it
         self._stop_wmax[j] = max(self._stop_wmax[j], w_in)
         zeno = (dev.e * w_in <= dev.ZENO_SPEED * self._stop_wmax[j]
                 or t - self._stop_last[j] <= dev.ZENO_DT * max(1.0, abs(t)))
         self._stop_last[j] = t
         target = 0.0 if zeno else -dev.e * w
-        v2, p = self._project_row(t, v, j, target, dev)
+        v2, p, work = self._project_row(t, v, j, target, dev)     # not Zeno: a trial, projected again below
         if not zeno:
             # the relative acceleration into the limit just after the impact (free), and the nudge it will get
             modes = np.array(self._modes_now, dtype=int)
@@ -159,14 +157,13 @@ class Impacts:
             rel = float(self.rel_positions(x)[j])
             delta = max(side * (rel - self._nudge_goal(dev, side)), 0.0)
             rise = (dev.e * w_in) ** 2 - 2.0 * a_in * delta
-            # the final impulse is projected again from v-: only its rigid rows' work counts (the trial's was booked
-            # too and a source's work came out twice: -6 J for -3 J on a Speed source behind a stop with e = 0.5)
-            self._impulse_work[:] = 0.0
+            # the final impulse, projected again from v-: only its rigid rows' work counts (booking the trial's too
+            # gave a Speed source behind a stop with e = 0.5 -6 J for -3 J)
             if rise <= 0.0:
                 zeno = True
-                v2, p = self._project_row(t, v, j, 0.0, dev)
+                v2, p, work = self._project_row(t, v, j, 0.0, dev)
             else:
-                v2, p = self._project_row(t, v, j, -side * math.sqrt(rise), dev)
+                v2, p, work = self._project_row(t, v, j, -side * math.sqrt(rise), dev)
                 self._nudge(t, x, j, side, dev, self._modes_now)
         # one-way clutches the rebound would drive backward lock (``_one_way_locks``): each a plastic impact of its
         # two sides after the stop's (momentum kept, energy lost: restitution applied to both sides together fed
@@ -179,47 +176,47 @@ class Impacts:
             locked = more
             v_lock = v2
             v2 = self._lock_velocities(t, x, v2, locked, locked)
-            self._book_lock_work(v_lock, v2, locked)
+            work = work + self._lock_work(v_lock, v2, locked)
             w_now = float(self.w_rel(v2)[j])
             if side * w_now > scale:
-                v2, p_again = self._project_row(t, v2, j, 0.0 if zeno else -dev.e * w_now, dev, locked)
+                v2, p_again, work_again = self._project_row(t, v2, j, 0.0 if zeno else -dev.e * w_now, dev, locked)
                 p += p_again
+                work = work + work_again
         w2 = float(self.w_rel(v2)[j])
-        work = self._source_work()
+        by_source = self._source_work(work)
         if locked is None:
             loss = max(-p * (w + w2) / 2.0, 0.0)
-        else:       # several impulses: the kinetic energy they took (the locks' plastic losses in it), and what sources gave
-            loss = max(0.5 * float(np.sum(self.c.mass * (v * v - v2 * v2))) + sum(work.values()), 0.0)
-        self._impact_log.append((dev.name, 0, int(side), "impact", float(loss), tuple(work.items()) or None))
+        else:       # several impulses: the kinetic energy they took (the locks' losses in it), and what sources gave
+            loss = max(0.5 * float(np.sum(self.c.mass * (v * v - v2 * v2))) + sum(by_source.values()), 0.0)
+        self._impact_log.append((dev.name, 0, int(side), "impact", float(loss), tuple(by_source.items()) or None))
         return (STUCK if zeno else FREE), v2
 
-    def _book_lock_work(self, v, v2, locked):
-        """Add to ``_impulse_work`` the rigid rows' work of the lock projection ``v -> v2`` (``_lock_velocities``,
-        whose multipliers it does not return): ``M (v2 - v) = A^T y`` over the rigid rows and the rows stuck in
-        ``locked``, solved for ``y`` by least squares (the jump lies in that range), each rigid row's work
-        ``y_k A_k (v + v2) / 2``. A source's work through a freewheel locking in the rebound was in the stop's heat
-        (0.226 J of 1.82 J)."""
+    def _lock_work(self, v, v2, locked):
+        """Per rigid row, the work of the lock projection ``v -> v2`` (``_lock_velocities``, whose multipliers it does
+        not return): ``M (v2 - v) = A^T y`` over the rigid rows and the rows stuck in ``locked``, solved for ``y`` by
+        least squares (the jump lies in that range), each rigid row's work ``y_k A_k (v + v2) / 2``. Without it a
+        source's work through a freewheel locking in the rebound would be booked as the stop's heat."""
         c = self.c
         if not c.Gpv.shape[0]:
-            return
+            return np.zeros(0)
         rigid = c.Gpv.toarray()
         G = self._Gd if self._Gd is not None else self.G.toarray()
         rows = [G[k][None, :] for k in range(self.mf) if locked[k] == STUCK]
         A = np.vstack([rigid] + rows)
         y = np.linalg.lstsq(A.T, c.mass * (v2 - v), rcond=None)[0]
-        self._impulse_work += y[:rigid.shape[0]] * (rigid @ (0.5 * (v + v2)))
+        return y[:rigid.shape[0]] * (rigid @ (0.5 * (v + v2)))
 
-    def _source_work(self):
-        """``{device: J}``: the work the rigid rows' impulses of this impact did on the masses (``_project_row``), per
-        device, where it is above round-off: a motion source on the stop's path keeps its speed through the impulse
-        and gives (or takes) that energy at the instant, which its ``power`` signal (a function of the rows) cannot
-        show (fuzz seed 94074: a Speed source holding a planetary's carrier took 0.091 J at a plastic impact on the
-        ring, and the books of every solver were open by that; ``Result.impulse_work``)."""
+    def _source_work(self, work):
+        """``{device: J}`` of ``work``, the work the rigid rows' impulses of an impact did on the masses (per row:
+        ``_project_row``, ``_lock_work``), where it is above round-off: a motion source on the stop's path keeps its
+        speed through the impulse and gives (or takes) that energy at the instant, which its ``power`` signal (a
+        function of the rows) cannot show (fuzz seed 94074: a Speed source holding a planetary's carrier took 0.091 J
+        at a plastic impact on the ring, and the books of every solver were open by that; ``Result.impulse_work``)."""
         st = self.c.structure
         rows = list(st.position) + list(st.speed)
-        scale = 1e-12 * max(1.0, float(np.abs(self._impulse_work).sum()))
+        scale = 1e-12 * max(1.0, float(np.abs(work).sum()))
         out = {}
-        for k, wk in enumerate(self._impulse_work.tolist()):
+        for k, wk in enumerate(np.asarray(work).tolist()):
             if abs(wk) > scale:
                 name = rows[k].device.name
                 out[name] = out.get(name, 0.0) + wk
@@ -240,13 +237,14 @@ class Impacts:
         goal = self._nudge_goal(dev, side)
         if side * (rel - goal) <= 0:
             return
-        dx, _ = self._project_row(t, np.zeros_like(x), j, goal - rel, dev, modes, positions=True)
+        dx, _, _ = self._project_row(t, np.zeros_like(x), j, goal - rel, dev, modes, positions=True)
         x += dx
 
     def _project_row(self, t, v, j, target, dev, modes=None, positions=False):
         """Speeds closest to ``v`` in the mass norm with the rigid rows at their references, the stuck friction
-        rows at zero slip and row ``j`` at ``target``: ``(v+, impulse on row j)``. ``positions``: a change of
-        positions instead (``v`` zero, every other row unchanged, row ``j`` moved by ``target``)."""
+        rows at zero slip and row ``j`` at ``target``: ``(v+, impulse on row j, work of each rigid row's impulse)``.
+        ``positions``: a change of positions instead (``v`` zero, every other row unchanged, row ``j`` moved by
+        ``target``; no work, None)."""
         c = self.c
         modes = self._modes_now if modes is None else modes
         rigid = c.Gpv.toarray() if c.Gpv.shape[0] else np.zeros((0, c.n))
@@ -271,12 +269,10 @@ class Impacts:
         dv = inv_m * (A.T @ y)
         y2 = dgetrs(lu, piv, r - A @ dv)[0]
         dv += inv_m * (A.T @ y2)
-        if not positions and len(rigid):
-            # the work of the rigid rows' impulses on the masses, y_k A_k (v- + v+) / 2 (exact: the kinetic energy's
-            # jump is the sum of these over every row); nonzero only on a row whose speed is a source's reference
-            y_rigid = (y + y2)[:len(rigid)]
-            self._impulse_work += y_rigid * (rigid @ (v + 0.5 * dv))
-        return v + dv, float(y[-1] + y2[-1])
+        # the work of the rigid rows' impulses on the masses, y_k A_k (v- + v+) / 2 (exact: the kinetic energy's jump
+        # is the sum of these over every row); nonzero only on a row whose speed is a source's reference
+        work = (y + y2)[:len(rigid)] * (rigid @ (v + 0.5 * dv)) if not positions else None
+        return v + dv, float(y[-1] + y2[-1]), work
 
     def _stop_release(self, t, x, j, lam_j, modes):
         """Step 2 for a holding stop: True when its contact force would pull (it releases; its positions are

@@ -485,6 +485,12 @@ class ModeLogic:
         "forward" at w_a down to -0.0136 rad/s, its loss supplying power, and the run came back 7.2 % of its range
         off with an estimate of 9.6e-5. Such a run is refused, not returned."""
         v = y[self.c.iv]
+        if not np.all(np.isfinite(v)):
+            # a NaN speed would pass every comparison below: refused by name, never returned
+            names = self.c.structure.coord_names
+            bad = [names[k] for k in np.nonzero(~np.isfinite(v))[0][:4]]
+            raise SimulationError(f"the run ends at t={t:.9g} with non-finite speeds of {bad}: a law or signal acting "
+                                  f"on them overflows; check those components' parameters and signals")
         w = self.w_rel(v)
         self._check_sliding_sides(t, (w.tolist(), None, None, abs_max(w)), modes, 1e-9 * max(1.0, abs_max(v)))
 

@@ -470,7 +470,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 for (name, old, new, kind) in surf.begin(t, y):      # reached at another event's instant
                     events.append(Event(t, name, old, new, kind))
             sol = _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse, deadline,
-                                 kind_atol, [e for e in events[-8:] if e.t == t])
+                                 kind_atol, events)
         if sol is not None and sol.status == DISPROVED:
             # a root that was the interpolant's only (``_relocate_root``): on from the re-integration's state, as after
             # a contact
@@ -759,9 +759,10 @@ def _reusable(reuse, modes, atol_vec):
     return reuse["solver"]
 
 
-def _restart_note(started_by):
-    """What an IDA failure's message adds when the segment began at an event (``started_by``: its events): the
-    devices that changed there, which the largest accelerations and forces need not name."""
+def _restart_note(events, t):
+    """What an IDA failure's message adds when the segment began at an event (``events``: the run's so far, the last
+    of them at ``t``): the devices that changed there, which the largest accelerations and forces need not name."""
+    started_by = [e for e in events[-8:] if e.t == t]
     if not started_by:
         return ""
     changes = "; ".join(str(e).split(": ", 1)[-1] for e in started_by[:4])
@@ -770,9 +771,9 @@ def _restart_note(started_by):
 
 
 def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, reuse=None, deadline=None,
-                   kind_atol=None, started_by=()):
-    """One IDA run from t to t_stop (or to the first mode event); records the output rows. ``started_by``: the events
-    at ``t`` (named by a failure's message).
+                   kind_atol=None, events=()):
+    """One IDA run from t to t_stop (or to the first mode event); records the output rows. ``events``: the run's so
+    far (a failure's message names those at ``t``, ``_restart_note``).
 
     After a mode event the solver is a fresh one: scikit-sundae's event bookkeeping lives on the
     events function and accumulates across ``solve`` calls. After a time event with the modes
@@ -825,7 +826,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         except (RuntimeError, ValueError, KeyError) as exc:
             raise SimulationError(f"IDA failed near t={t:.9g} in model '{model.name}': {exc!r};"
                                   f"{sundials_log.said(lines)} components most involved: "
-                                  f"{_blame(c, y, yp)}.{_restart_note(started_by)}") from exc
+                                  f"{_blame(c, y, yp)}.{_restart_note(events, t)}") from exc
     if reuse is not None and sol.status not in (0, 1) and not native:
         reuse.clear()            # a mode event (its bookkeeping stays on the events function) or a failure
     stats.segments += 1
@@ -846,7 +847,7 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         hint = hint.rstrip(".")
         raise SimulationError(
             f"IDA failed at t={t_fail:.9g} in model '{model.name}': {sol.message}{sundials_log.said(lines)}; "
-            f"components most involved: {_blame(c, last_y, last_yp)}. {hint}.{_restart_note(started_by)}"
+            f"components most involved: {_blame(c, last_y, last_yp)}. {hint}.{_restart_note(events, t)}"
             f"{c.stiffness_hint()}")
     if lines:
         # an error line from a solve that went on (none is known to occur): not dropped silently

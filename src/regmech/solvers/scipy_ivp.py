@@ -58,15 +58,15 @@ stiff for the method never meets the cap. RK45 and RK23 keep their steps
 On a nonlinear model the radius is taken again (``ode_driver.segment_radius``)
 at a segment's start when its friction modes differ from those of the last
 radius (not its contacts: ``_dynamics_key``), or ``RECAP_STEPS`` (64) steps
-have passed since, and within a segment every ``RECAP_STEPS`` steps: fuzz seed 92005's Magic Formula wheel
-made it 1,330-1,490 1/s where the start's was 303, and DOP853 at rtol 1e-8,
+have passed since, and within a segment every ``RECAP_STEPS`` steps: fuzz
+seed 92005's Magic Formula wheel made it 1,330-1,490 1/s where the start's was 303, and DOP853 at rtol 1e-8,
 stepping at h rho = 5.7 after a Pulse edge, returned rows 6.9e-4 of the range
 off (now 6.8e-9). The cap is never looser than the start's. The linear
 form's radius is constant and taken once. (Taking it at every segment once
 cost 70 % of a CoupledClutches run; this schedule costs nothing measurable
 there: 61.8 against 61.9 ms.) Below ``rtol = CAP_RTOL`` (1e-3) the cap
-shrinks as ``(rtol / CAP_RTOL)^(1/8)``, as DOP853's own steps do: at the fixed cap the
-steps where it binds were the same at every rtol, and so was the error of
+shrinks as ``(rtol / CAP_RTOL)^(1/8)``, as DOP853's own steps do: at the
+fixed cap the steps where it binds were the same at every rtol, and so was the error of
 the output read from DOP853's continuous extension between them (on the
 scalar test equation at ``h lambda = -5.4`` it is off by 2.5 times the
 mode's amplitude at the step's start, while the step's end is within 0.15
@@ -368,11 +368,11 @@ def _dynamics_key(problem):
     """The friction modes of the current segment: what changes the ODE form's dg/du from one segment to the next,
     besides the state of a nonlinear law.
 
-    Not the sides of the piecewise laws' surfaces (contacts), although a contact's stiffness moves the radius too: with
-    them, fuzz seed 95096 (an end stop's 5.7 ms contacts, radius 9 -> 535-757 1/s) came out 2.1e-6 of the range off at
-    rtol 1e-10 where it was 1.4e-7 with the start's cap, and 1.1e-8 to 1.1e-7 with this key (every ``RECAP_STEPS``
-    steps inside a contact still sees its stiffness). Why the contacts' own radius made it worse is not understood (a helper's
-    campaign; its segments went from 118 to 120)."""
+    Not the sides of the piecewise laws' surfaces (contacts), although a contact's stiffness moves the radius too:
+    with them, fuzz seed 95096 (an end stop's 5.7 ms contacts, radius 9 -> 535-757 1/s) came out 2.1e-6 of the range
+    off at rtol 1e-10 where it was 1.4e-7 with the start's cap, and 1.1e-8 to 1.1e-7 with this key (every
+    ``RECAP_STEPS`` steps inside a contact still sees its stiffness). Why the contacts' own radius made it worse is
+    not understood (a helper's campaign; its segments went from 118 to 120)."""
     return np.asarray(problem.modes).tobytes()
 
 
@@ -417,7 +417,7 @@ def _scipy_solver(method, name=None, cls=None):
             options["max_step"] = max_step
 
         start_radius = []   # the spectral radius at the run's start, once (``_refuse_if_stiff``)
-        last = dict(key=None, rho=None, steps=0)    # the latest radius: its modes and contacts, the run's steps then
+        last = dict(key=None, rho=None, steps=0)    # the latest radius, its friction modes and the run's steps then
 
         def make(problem, t0, u0, t_bound, knots):
             if method in EXPLICIT_STABILITY and not start_radius:
