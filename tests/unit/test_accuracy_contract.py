@@ -532,3 +532,70 @@ def test_a_servo_rattling_in_a_hard_stop_meets_the_contract():
     tg = np.linspace(0.0, 0.1, 1001)
     for name in ("J1.w", "J1.phi"):
         assert np.max(np.abs(res.at(name, tg) - ref.at(name, tg))) <= 1e-4 * np.ptp(ref.at(name, tg)), name
+
+
+def test_a_kind_at_rest_is_no_motion_for_the_atol_scale():
+    """``motion_scale``: the smallest range among the kinds that move; a kind at rest (its range within the
+    measure's floors, ``richardson.kind_at_rest``) is not one. Calibration seed 9001: a stuck clutch's temperature
+    rise moved by 2e-14 K of round-off and set the scale to its floor, ATOL_SCALE_MIN, and the contract's runs to
+    atol = 1e-8 rtol (1.4 million IDA steps)."""
+    from regmech.solvers.accuracy import ATOL_SCALE_MIN, motion_scale
+    from regmech.solvers.richardson import StateLabel
+    labels = [StateLabel("J.phi", "J", "phi"), StateLabel("J.w", "J", "w"), StateLabel("clutch.T", "clutch", "state:T")]
+    t = np.linspace(0.0, 1.0, 11)
+    values = np.column_stack([6.6e-3 * t, 0.08 * np.cos(t), 2e-14 * np.sin(7 * t)])
+    assert motion_scale(None, labels, None, values) == pytest.approx(6.6e-3)
+    # a temperature rise that does move (1e-9 K, above ABSOLUTE_FLOOR) sets the scale, down to its floor
+    values[:, 2] = 1e-9 * t
+    assert motion_scale(None, labels, None, values) == ATOL_SCALE_MIN
+    values[:, 2] = 1e-4 * t
+    assert motion_scale(None, labels, None, values) == pytest.approx(1e-4)
+
+
+def test_a_kind_at_rest_in_both_runs_is_left_out_of_the_estimate():
+    """``compare_states``: a kind at rest in both runs of a pair (its noise within its floor) is no error of
+    1e-2 "of its range"; the signal is listed in ``at_rest``. A kind at rest in both runs but at values more than
+    two floors apart (a jump to another rest) stays in, as does a kind that moves in one run."""
+    from regmech.solvers.accuracy import compare_states
+    from regmech.solvers.richardson import StateLabel
+    labels = [StateLabel("J.w", "J", "w"), StateLabel("clutch.T", "clutch", "state:T")]
+    grid = np.linspace(0.0, 1.0, 11)
+    a = np.column_stack([np.sin(grid), 3e-13 * np.sin(5 * grid)])
+    b = np.column_stack([np.sin(grid) + 1e-7, -4e-13 * np.sin(3 * grid)])
+    est = compare_states(a, b, labels, grid)
+    assert est.signal == "J.w" and est.value == pytest.approx(1e-7 / np.ptp(b[:, 0]))
+    assert est.at_rest == ("clutch.T",)
+    jumped = b.copy()
+    jumped[:, 1] = 5e-12                       # at rest, but 5e-12 K away from where the other run rests
+    est = compare_states(a, jumped, labels, grid)
+    assert est.signal == "clutch.T" and est.value > 1.0 and est.at_rest == ()
+    moved = b.copy()
+    moved[:, 1] = 1e-9 * grid                  # moves in one run: judged against its range
+    est = compare_states(a, moved, labels, grid)
+    assert est.signal == "clutch.T" and est.value == pytest.approx(1.0, rel=1e-3)
+
+
+def test_a_retry_never_runs_below_the_lowest_rtol(monkeypatch):
+    """A pair whose estimate is far above the accuracy aims its retry at ``r * SAFETY * a / estimate``; below
+    ``TIGHTEN * RTOL_MIN`` that pair is not run (calibration seed 9001, before its fix: an estimate of 1.9 from a
+    temperature's round-off sent the loose run to rtol 2e-15, and the solver refused it as if the user had asked)."""
+    import regmech.solvers.accuracy as acc
+    _load()
+    rtols = []
+
+    def keep(model, **kw):
+        rtols.append(kw["rtol"])
+        return SOLVERS["scipy:DOP853"](model, **kw)
+    real = acc._pair_estimate
+    calls = []
+
+    def inflated(*args, **kw):
+        est, ev = real(*args, **kw)
+        calls.append(1)
+        return (est if len(calls) > 1 else acc.dataclasses.replace(est, value=1e9)), ev
+    monkeypatch.setattr(acc, "_pair_estimate", inflated)
+    m, _ = damped_oscillator()
+    res = simulate_with_accuracy(m, "scipy:DOP853", keep, 0.0, 5.0, 0.01, 1e-4, {})
+    assert min(rtols) >= acc.RTOL_MIN
+    assert rtols[2] == pytest.approx(acc.TIGHTEN * acc.RTOL_MIN)
+    assert res.stats.error_estimate <= 1e-4

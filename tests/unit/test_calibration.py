@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 
 import regmech as rm
 from regmech.bench import calibration as C
@@ -66,3 +67,18 @@ def test_a_verdict_beyond_the_accuracy_within_the_references_resolution_is_unres
     # 1.1e-4 in that measure, so an error of 1.1e-4 at accuracy 1e-4 cannot be judged
     assert verdict(1.1e-4, 1e-4, 1.1e-4) == "unresolved"
     assert verdict(1.1e-4, 1e-4, float("nan")) == "broken"          # no cross-check: judged against the reference
+
+
+def test_the_judge_measures_a_kind_at_rest_as_the_contract_does():
+    """``_measure`` (a run against the reference) leaves out a kind at rest in both where they agree within its
+    floor, as the contract's estimate does (``richardson.clear_at_rest``); a real difference stays."""
+    from regmech.solvers.richardson import StateLabel
+    labels = [StateLabel("J.w", "J", "w"), StateLabel("clutch.T", "clutch", "state:T")]
+    t = np.linspace(0.0, 1.0, 11)
+    ref = np.column_stack([np.sin(t), np.zeros_like(t)])
+    run = np.column_stack([np.sin(t) + 1e-6, 4e-13 * t])
+    value, signal = C._measure(run, ref, labels)
+    assert signal == "J.w" and value == pytest.approx(1e-6 / np.ptp(ref[:, 0]))
+    run[:, 1] = 1e-9 * t
+    value, signal = C._measure(run, ref, labels)
+    assert signal == "clutch.T" and value > 100

@@ -105,9 +105,10 @@ def test_repeated_run_is_reported_and_counted():
     assert plain.stats.rhs_calls == info["first_run_rhs_calls"]
 
 
-def test_the_contract_makes_its_first_ida_run_once():
-    """The accuracy contract's first run is its pair's loose run, and it scales a small motion's atol itself:
-    ida does not repeat that run (``atol_rescale=False``); the returned run still meets the accuracy."""
+def test_the_contract_makes_each_ida_run_once():
+    """The accuracy contract scales a small motion's atol itself (``accuracy.motion_scale``): ida repeats none of
+    its runs (``atol_rescale=False``; once the contract has scaled, ida's repeat could only resolve a kind the
+    estimate leaves out as at rest, calibration seed 9001); the returned run still meets the accuracy."""
     from regmech.solvers import SOLVERS, _load
     from regmech.solvers.accuracy import simulate_with_accuracy
     _load()
@@ -119,7 +120,7 @@ def test_the_contract_makes_its_first_ida_run_once():
         flags.append(kw.get("atol_rescale", True))
         return SOLVERS["ida"](model, **kw)
     res = simulate_with_accuracy(m, "ida", ida, 0.0, 0.2, None, 1e-4, {})
-    assert flags[0] is False and all(flags[1:])
+    assert len(flags) >= 2 and not any(flags)
     assert rel_err(ref, res, "M0.v") <= res.stats.error_estimate <= 1e-4
 
 
@@ -154,9 +155,14 @@ def test_rescaled_atol_rule():
     tol, _ = ida._rescaled_atol(c, Y, 1e-13, 1e-14)
     assert np.allclose(tol[c.ix], 1e3 * np.finfo(float).eps * 2e-3)
     # and never below RERUN_FLOOR times atol
-    Y[1, c.ix] = 1e-12
+    Y[1, c.ix] = 1e-11
     tol, _ = ida._rescaled_atol(c, Y, rtol, atol)
     assert np.allclose(tol[c.ix], ida.RERUN_FLOOR * atol)
+    # a kind within the measure's floor of no motion (ABSOLUTE_FLOOR, 1e-12 SI units) did not move: its values are
+    # round-off (calibration seed 9001: a stuck clutch's temperature rise of 1.5e-14 K had the device states'
+    # atol scaled by RERUN_FLOOR, and the repeat crawled)
+    Y[1, c.ix] = 1.5e-14
+    assert ida._rescaled_atol(c, Y, rtol, atol) is None
 
 
 def test_state_scale_saturation_and_floor():

@@ -309,7 +309,7 @@ class CompiledSystem:
             res[self.r_fric] = fr.residual_rows(t, y[self._sv], a, y[self._slam], modes, q)
             if fr.state_rows:
                 # z' - h: the plan wrote z' (these states have no kernel); subtract the device's rates
-                zi, rates = fr.state_rates(t, y[self._sv], y[self._slam], q)
+                zi, rates = fr.state_rates(t, y[self._sv], y[self._slam], q, modes)
                 res[self.r_z[zi]] -= rates
 
     def jacobian_data(self, t, y, yp, cj, modes=None):
@@ -395,7 +395,7 @@ class CompiledSystem:
         sol = self._kkt(modes, relations).solve(rhs)
         if self.mf and self.friction.state_rows:
             # friction devices' own states read their friction force: known after the solve
-            zi, rates = self.friction.state_rates(t, v, sol[self.n:], q)
+            zi, rates = self.friction.state_rates(t, v, sol[self.n:], q, modes)
             dz = dz.copy()
             dz[zi] = rates
         return sol[: self.n], sol[self.n:], dz

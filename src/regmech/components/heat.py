@@ -34,7 +34,8 @@ fade))`` (also ``Brake``, ``OneWayClutch``, ``FrictionContact``, ``LinearBrake``
 
     C dT/dt = P - G (T - T_amb),     P = lam * w_rel  (the power its friction absorbs, >= 0)
 
-in every mode (sliding: ``P = tau_k |w_rel|``; stuck, free: ``P = 0`` to round-off), and its
+in every mode (sliding: ``P = tau_k |w_rel|``; stuck, free: ``P = 0`` exactly, the rates reading
+the slip or the torque that the mode pins, ``FrictionRows._pinned``), and its
 friction coefficient is ``mu(|w_rel|) * fade(T)`` (``fade``: (T [K], factor) points, linear
 between them, constant beyond; capacities ``tau0`` and ``tau0_max`` fade too, so a hot
 stuck clutch breaks away earlier). Books: ``heat_stored = C (T - T0)`` and

@@ -26,7 +26,10 @@ extrapolation against a *companion run*:
   (``regmech.bench.hard``). A state that hardly moves is thus not held to
   its own tiny range (round-off alone would exceed it); a kind that does
   not move at all is measured against ``MAGNITUDE_FLOOR`` times its largest
-  value, and at least ``ABSOLUTE_FLOOR`` (in the state's SI unit).
+  value, and at least ``ABSOLUTE_FLOOR`` (in the state's SI unit); a kind
+  at rest in both runs, whose values agree within twice that floor, is left
+  out (``clear_at_rest``: its noise is no error of its motion; listed in
+  ``stats.extra["at_rest"]``).
 
 ``stats.error_estimate`` is ``max_i,t E_i(t) / scale_i``; when it exceeds
 ``tol`` the run raises ``AccuracyError`` naming the worst state's signal
@@ -101,6 +104,9 @@ SAFETY = 0.8
 MAGNITUDE_FLOOR = 1e-6
 #: ... and at least against this absolute value (SI units of the state: rad, m, rad/s, m/s, ...)
 ABSOLUTE_FLOOR = 1e-12
+#: two runs that keep a kind at rest (its range within the floors above in both) agree when they differ by at
+#: most this many times its floor: the sum of their ranges (``clear_at_rest``)
+REST_AGREEMENT = 2.0
 #: |y_2h - y_4h| / |y_h - y_2h| below this: the error does not shrink with the step
 SHRINK_RATIO = math.sqrt(2.0)
 #: ... but only when the estimate is below this fraction of the range (a floor); larger errors that do not
@@ -169,23 +175,84 @@ def kind_scales(labels, values: np.ndarray) -> np.ndarray:
     return scales
 
 
+def kind_at_rest(range_k: float, magnitude_k: float) -> bool:
+    """Whether a kind of state whose largest range over a run is ``range_k`` and largest magnitude
+    ``magnitude_k`` does not move: ``range_k <= max(MAGNITUDE_FLOOR * magnitude_k, ABSOLUTE_FLOOR)``, the
+    floors of ``kind_scales`` (a non-finite value moves)."""
+    if not (math.isfinite(range_k) and math.isfinite(magnitude_k)):
+        return False
+    return range_k <= max(MAGNITUDE_FLOOR * magnitude_k, ABSOLUTE_FLOOR)
+
+
+def at_rest_mask(labels, *runs: np.ndarray) -> np.ndarray:
+    """Per state: True when its kind is at rest (``kind_at_rest``) in every run of ``runs`` (state matrices, one
+    row per instant, one column per label), its magnitude taken over all of them."""
+    mask = np.zeros(len(labels), dtype=bool)
+    runs = [r for r in runs if len(r)]
+    if not runs or not len(labels):
+        return mask
+    mag = np.max([np.max(np.abs(r), axis=0) for r in runs], axis=0)
+    ranges = [np.ptp(r, axis=0) for r in runs]
+    for members in kind_members(labels):
+        m_k = float(mag[members].max())
+        mask[members] = all(kind_at_rest(float(rng[members].max()), m_k) for rng in ranges)
+    return mask
+
+
+def clear_at_rest(d: np.ndarray, labels, *runs: np.ndarray) -> tuple[np.ndarray, list]:
+    """``d`` (scaled differences of two runs, one column per label, scales from ``kind_scales``) with the
+    columns of the kinds at rest in every run of ``runs`` set to zero where the runs agree within
+    ``REST_AGREEMENT`` of the floor, and the signals so cleared.
+
+    A kind at rest has no range to be measured against: ``kind_scales`` gives it its floor, ``ABSOLUTE_FLOOR``
+    (1e-12 SI units) when its values are themselves near zero, and the noise of a quantity that does not move
+    is then judged as if it were its motion. Calibration seed 9001: a stuck clutch's temperature rise
+    (``clutch1.T``) moved by 2e-14 K of round-off in each run, its pairs differed by 1e-14 to 4e-13 K, i.e.
+    estimates of 0.01 to 0.8 "of its range", and the contract tightened the solver's atol to 1e-8 rtol to hold
+    that noise (1.4 million IDA steps for a model that plain ida runs in 0.8 s). Two runs that both keep a kind
+    at rest, starting from the same values, agree within the two floors: that is the answer (it does not
+    move), and the difference is left out. A kind at rest in both runs but at values more than two floors
+    apart (a jump to another rest) stays in ``d``."""
+    cleared: list = []
+    if not d.size:
+        return d, cleared
+    mask = at_rest_mask(labels, *runs)
+    if not mask.any():
+        return d, cleared
+    d = d.copy()
+    for i in np.flatnonzero(mask):
+        col = d[:, i]
+        if np.all(np.isfinite(col)) and float(col.max()) <= REST_AGREEMENT:
+            d[:, i] = 0.0
+            cleared.append(labels[int(i)].signal)
+    return d, cleared
+
+
 @dataclass
 class Difference:
     value: float        # max over states and instants of |a - b| / scale
     index: int          # the state
     t: float            # the instant
     instants: int       # instants compared
+    at_rest: tuple = ()     # signals of kinds at rest in both runs, left out (``clear_at_rest``)
 
 
-def scaled_difference(a: GridProbe, b: GridProbe, scales) -> Difference:
+def scaled_difference(a: GridProbe, b: GridProbe, scales, labels=None) -> Difference:
+    """The largest difference of two runs at the instants both hit, over ``scales``; with ``labels``, the
+    kinds at rest in both runs are left out where the runs agree (``clear_at_rest``)."""
     common = sorted(set(a.samples) & set(b.samples))
     if not common:
         return Difference(math.inf, 0, math.nan, 0)
-    d = np.abs(np.array([a.samples[t] for t in common]) - np.array([b.samples[t] for t in common])) / scales
+    va = np.array([a.samples[t] for t in common])
+    vb = np.array([b.samples[t] for t in common])
+    d = np.abs(va - vb) / scales
     if not np.all(np.isfinite(d)):
         return Difference(math.inf, 0, math.nan, len(common))
+    rest: list = []
+    if labels:
+        d, rest = clear_at_rest(d, labels, va, vb)
     k, i = np.unravel_index(int(np.argmax(d)), d.shape)
-    return Difference(float(d[k, i]), int(i), float(common[k]), len(common))
+    return Difference(float(d[k, i]), int(i), float(common[k]), len(common), tuple(rest))
 
 
 # -------------------------------------------------------------------- the runs
@@ -306,7 +373,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
             f"(it took {stats2.steps} steps against {res.stats.steps}; events from {_event_sources(model, c)}). "
             f"Use a step h well below the spacing of the events, an adaptive solver ('ida', 'scipy:DOP853'), or "
             f"{_SKIP}.", accuracy=tol)
-    d1 = scaled_difference(main_probe, probe2, scales) if labels else Difference(0.0, 0, t_end, 0)
+    d1 = scaled_difference(main_probe, probe2, scales, labels) if labels else Difference(0.0, 0, t_end, 0)
     est = max(d1.value / (ratio ** order - 1.0), floor)
     _record(res.stats, tol, order, est, d1, labels, stats2, ratio, time.perf_counter() - t0,
             error_companion="2h")
@@ -317,7 +384,7 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
         # error does shrink like h^p (events located on an interpolant or forcing the steps do not
         # resolve lower the order; measured: expm on OneWayClutch at h = 2 ms, estimate 3.8e-7 against
         # a true 1.2e-6, order 1 there)
-        d2, four = _difference_at_4h(companion, probe2, scales), True
+        d2, four = _difference_at_4h(companion, probe2, scales, labels), True
         p_obs = _observed_order(d1, d2)
         if p_obs is not None and p_obs < order - 0.5:
             est = max(d1.value / (2.0 ** max(0.5, p_obs) - 1.0), floor)
@@ -336,18 +403,18 @@ def simulate_fixed_step(model, name, make_stepper, *, h: float, order: float, to
             return res
     if not est <= tol:
         if est < 1.0 and not four:      # is the error a truncation error (shrinking like h^p)? a run at 4h tells
-            d2 = _difference_at_4h(companion, probe2, scales)
+            d2 = _difference_at_4h(companion, probe2, scales, labels)
         raise _too_inaccurate(name, model, c, h, order, tol, est, d1, d2, labels)
     return res
 
 
-def _difference_at_4h(companion, probe2, scales):
+def _difference_at_4h(companion, probe2, scales, labels=None):
     """The scaled difference between the runs at 2h and 4h (None when the run at 4h fails)."""
     try:
         probe4, _ = companion(4)
     except SimulationError:
         return None
-    return scaled_difference(probe2, probe4, scales)
+    return scaled_difference(probe2, probe4, scales, labels)
 
 
 def _observed_order(d1, d2):
@@ -366,7 +433,7 @@ def _half_step_estimate(main_probe, companion, order, scales, labels, t_end, mai
         probe_half, stats_half = companion(0.5)
     except SimulationError:
         return None
-    d = scaled_difference(main_probe, probe_half, scales) if labels else Difference(0.0, 0, t_end, 0)
+    d = scaled_difference(main_probe, probe_half, scales, labels) if labels else Difference(0.0, 0, t_end, 0)
     return d.value * 2.0 ** order / (2.0 ** order - 1.0), d, stats_half
 
 
@@ -380,6 +447,8 @@ def _record(st, tol, order, est, d, labels, stats_c, ratio, elapsed, **more):
                      "error_estimate_time": elapsed,
                      # the mode changes of the companion behind the estimate (compared by solvers.accuracy)
                      "companion_events": stats_c.extra.get("event_list", []), **more})
+    if d.at_rest:
+        st.extra["at_rest"] = list(d.at_rest)
 
 
 def first_words(exc, n=None):
