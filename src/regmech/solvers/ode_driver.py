@@ -41,6 +41,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import SimulationError
 from ..hybrid import attach, guards_for
 from ..result import Event, Result, Stats
+from .blas import one_blas_thread
 from .common import Recorder, check_times, output_grid, run_deadline, scale_hint, signal_breakpoints
 from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROUGH,  # noqa: F401 (BLOW_UP
                          ROUGH_STEPS, GrowthWatch)                                 # is re-exported)
@@ -1490,7 +1491,19 @@ def simulate_ode(model, name, make_stepper, t_start=0.0, t_end=1.0, dt_out=None,
     breakpoints that the steps hit exactly; with ``record=False`` (the
     companion runs of ``richardson``) nothing is recorded and the run returns
     its ``Stats`` only.
+
+    The run holds numpy's BLAS at one thread (``blas.one_blas_thread``: scipy's steppers form their stages
+    with memory-bound products that threads slow down).
     """
+    with one_blas_thread():
+        return _simulate_ode(model, name, make_stepper, t_start, t_end, dt_out, max_events=max_events,
+                             chatter_window=chatter_window, chatter_count=chatter_count, explicit=explicit,
+                             max_growth=max_growth, probe=probe, record=record)
+
+
+def _simulate_ode(model, name, make_stepper, t_start, t_end, dt_out, *, max_events, chatter_window, chatter_count,
+                  explicit, max_growth, probe, record):
+    """``simulate_ode``'s run."""
     t_start, t_end, dt_out = check_times(t_start, t_end, dt_out)
     deadline = run_deadline(name, model, t_end)
     tc = time.perf_counter()
