@@ -15,7 +15,10 @@ structs)::
     names           1 x signals cell         ('J1.w', 'clutch.tau', 'clutch.mode', ...)
     units           1 x signals cell         ('rad/s', 'N m', '1'; '' when not declared)
     events          struct of columns: t [s], device (cell), old_mode, new_mode (codes),
-                    old_name, new_name (cells: 'Free', 'Stuck', ...), kind (cell), t_error [s] (NaN: none)
+                    old_name, new_name (cells: 'Free', 'Stuck', ...), kind (cell), t_error [s] (NaN: none),
+                    value [J] (an impact's dissipated energy, ``Event.value``; NaN: none),
+                    work_json (cell: an impact's work per motion source, ``Event.work``, as JSON
+                    [["device", J], ...]; '': none)
     stats           struct: solver, wall_time, compile_time, steps (NaN: not reported), rhs_calls,
                     jac_calls, segments, events, error_estimate (NaN: none), text (one line),
                     extra_json (the solver's extra statistics as JSON)
@@ -102,6 +105,10 @@ def save_result(res: Result, path, names=None) -> Path:
         "new_name": _cell([_mode_name(e, e.new_mode) for e in ev]),
         "kind": _cell([e.kind for e in ev]),
         "t_error": np.array([_nan_if_none(e.t_error) for e in ev], float).reshape(-1, 1),
+        # an impact's heat and a motion source's work through its impulse: the books of a loaded result
+        # (``Result.impulse_work``, ``res.integral('<source>.power')``) read them from the events
+        "value": np.array([_nan_if_none(e.value) for e in ev], float).reshape(-1, 1),
+        "work_json": _cell([json.dumps([[str(d), float(w)] for d, w in e.work]) if e.work else "" for e in ev]),
     }
     s = res.stats
     stats = {
@@ -152,6 +159,18 @@ def _text(v) -> str:
 
 def _field(struct, name):
     return struct[name] if name in struct.dtype.names else None
+
+
+def _finite_or_none(v):
+    """A stored number, None for NaN (none) or a column absent from the file (saved by an older regmech)."""
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+def _work(text):
+    """``Event.work`` from its JSON column: ``((device, J), ...)``, None for '' or an absent column."""
+    if not text:
+        return None
+    return tuple((str(d), float(w)) for d, w in json.loads(text))
 
 
 class StoredTrajectory:
@@ -242,9 +261,10 @@ def _read(raw: dict, path: Path):
         return _strings(v) if text else np.asarray(v, float).ravel().tolist()
 
     events = [Event(t=float(te), component=dev, old_mode=int(om), new_mode=int(nm), kind=kind,
-                    t_error=None if not np.isfinite(err) else float(err))
-              for te, dev, om, nm, kind, err in zip(times, col("device", True), col("old_mode"), col("new_mode"),
-                                                    col("kind", True), col("t_error"))]
+                    t_error=_finite_or_none(err), value=_finite_or_none(val), work=_work(work))
+              for te, dev, om, nm, kind, err, val, work in zip(times, col("device", True), col("old_mode"),
+                                                               col("new_mode"), col("kind", True), col("t_error"),
+                                                               col("value"), col("work_json", True))]
     st = raw["stats"][0, 0]
 
     def num(name, integer=True):

@@ -138,3 +138,28 @@ def test_wrong_types_are_regmech_errors():
         res.get(name, unit=["rpm"])
     with pytest.raises(rm.ParameterError, match="needs a signal name"):
         res.final(unit="rpm")
+
+
+def test_an_impacts_heat_and_a_sources_work_survive(tmp_path):
+    """``Event.value`` (an impact's heat) and ``Event.work`` (a motion source's work through the impulse) are in the
+    file (they were lost before), so a loaded result's books add up as the run's did (``impulse_work``)."""
+    from regmech.components import HardStop, Inertia, Planetary, Speed, Torque
+    m = rm.Model("stop_on_a_source_path")
+    J1, J2, J3 = (m.add(Inertia(n, J=J)) for n, J in (("J1", 1.0), ("J2", 0.1), ("J3", 0.5)))
+    pl = m.add(Planetary("pl", ratio=2.0))
+    motor = m.add(Speed("motor", w_ref=1.0))
+    drive = m.add(Torque("drive", tau=5.0))
+    stop = m.add(HardStop("stop", lower=-0.2, upper=0.2, e=0.0))
+    for a, b in [(pl.sun, J1.flange_b), (pl.carrier, J2.flange_b), (pl.ring, J3.flange_a),
+                 (motor.flange, J2.flange_a), (drive.flange, J1.flange_a), (stop.flange, J3.flange_b)]:
+        m.connect(a, b)
+    res = m.simulate(1.0, dt_out=1e-3, solver="ida", rtol=1e-8)
+    impacts = [e for e in res.events if e.kind == "impact"]
+    assert impacts and all(e.value is not None and e.work for e in impacts)
+    back = rm.load_result(res.save(tmp_path / "stop.mat"))
+    assert back.events == res.events
+    np.testing.assert_array_equal(back.impulse_work("motor"), res.impulse_work("motor"))
+    # plain scipy sees them too
+    raw = scipy.io.loadmat(tmp_path / "stop.mat")["events"][0, 0]
+    k = [i for i, e in enumerate(res.events) if e.kind == "impact"][0]
+    assert float(raw["value"][k, 0]) == res.events[k].value
