@@ -1712,3 +1712,57 @@ def test_an_open_clutch_neither_warms_nor_cools():
     for solver in ("ida", "dop853"):
         res = m.simulate(0.5, dt_out=1e-3, solver=solver, rtol=1e-9)
         assert np.all(np.asarray(res["clutch.T"]) == 293.15), solver
+
+
+def _lossy_planetary_that_stops_as_its_load_turns():
+    """Calibration seed 8031: a LossyPlanetary (sun J4, carrier J5, ring on J1) behind a brake and a one-way clutch to
+    a motor-driven J2 at 33 rad/s; a mass pair on a spring-damper beside it."""
+    import math as _math
+
+    from regmech.components import (Brake, ElectricMotor, Fixed, LossyPlanetary, Mass, OneWayClutch, Planetary,
+                                     SpringDamper)
+    from regmech.components.heat import ThermalMass
+    from regmech.signals import Constant
+    m = rm.Model("fuzz_8031")
+    J1 = m.add(Inertia("J1", J=0.08527))
+    owc1 = m.add(OneWayClutch("owc1", mu=0.1782, peak=1.149, cgeo=0.1083, fn_max=27.8,
+                              f_normalized=lambda t: 0.5427 + 0.3827 * _math.tanh((t - 0.4498) / 0.136)))
+    J2 = m.add(Inertia("J2", J=2.227, w0=32.91))
+    emot1 = m.add(ElectricMotor("emot1", command=Step(height=-0.7369, start_time=0.8893, offset=0.8036),
+                                tau_max=5.144, p_max=51.96))
+    M1 = m.add(Mass("M1", m=5.078, v0=-4.001, s0=-0.0389))
+    M2 = m.add(Mass("M2", m=75.16, v0=0.0))
+    sd1 = m.add(SpringDamper("sd1", c=582.1, d=14.66, domain="translational"))
+    brake1 = m.add(Brake("brake1", mu=0.3085, peak=1.472, cgeo=0.1002, fn_max=80.67, f_normalized=Constant(0.7281),
+                         thermal=ThermalMass(C=0.07632, G=0.001725, fade=[(293.15, 1.0), (299.9, 0.798)])))
+    planet1 = m.add(Planetary("planet1", ratio=3.705))
+    J3 = m.add(Inertia("J3", J=2.505, w0=0.0, phi0=-0.2021))
+    fixed = m.add(Fixed("fixed"))
+    lplanet1 = m.add(LossyPlanetary("lplanet1", ratio=3.758, loss_table=[[0.0, 0.594, 0.6706, 0.0, 0.0],
+                                                                          [0.1326, 0.8675, 0.6673, 1.225, 1.365],
+                                                                          [57.78, 0.5389, 0.975, 0.03824, 0.103]]))
+    J4 = m.add(Inertia("J4", J=2.267))
+    J5 = m.add(Inertia("J5", J=0.01335))
+    for a, b in [(owc1.flange_a, J1.flange_b), (owc1.flange_b, J2.flange_a), (emot1.flange, J2.flange_a),
+                 (sd1.flange_a, M1.flange_b), (sd1.flange_b, M2.flange_a), (brake1.flange, J1.flange_b),
+                 (planet1.carrier, J1.flange_a), (planet1.sun, J3.flange_b), (planet1.ring, fixed.flange),
+                 (lplanet1.ring, J1.flange_b), (lplanet1.sun, J4.flange_b), (lplanet1.carrier, J5.flange_a)]:
+        m.connect(a, b)
+    return m
+
+
+def test_a_gear_found_just_past_zero_speed_at_another_root_stops():
+    """Calibration seed 8031: at t = 0.3536 s the lossy planetary, rolling Forward, changed its driving side (its
+    second function's root, which IDA reported) while its speed passed zero unseen: it was found at w_a = -4.3e-7
+    rad/s among speeds of 33 rad/s, beyond round-off (1e-9 of them), kept rolling Forward, and the check after the
+    logic refused plain ida at rtol 3e-6 as a gap in the mode logic. Found past zero within ``PASSED_ZERO`` (1e-6 of
+    the speeds), it has reached zero speed: it stops, and the break-away test decides where it goes."""
+    m = _lossy_planetary_that_stops_as_its_load_turns()
+    res = m.simulate(1.192, dt_out=0.00298, solver="ida", rtol=3e-6)
+    stops = [e for e in res.events if e.component == "lplanet1" and abs(e.t - 0.35360) < 1e-5 and e.new_mode == 0]
+    assert stops and stops[0].old_mode == 1
+    assert not energy_checks(res, m, rel=1e-5), energy_checks(res, m, rel=1e-5)
+    ref = m.simulate(1.192, dt_out=0.00298, solver="ida", rtol=3e-9)
+    w_range = max(np.ptp(ref[f"J{i}.w"]) for i in range(1, 6))
+    for i in range(1, 6):
+        assert np.max(np.abs(res[f"J{i}.w"] - ref.at(f"J{i}.w", res.t))) <= 1e-5 * w_range

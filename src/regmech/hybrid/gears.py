@@ -13,10 +13,12 @@ import numpy as np
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
 
 
-def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impacted=False, at_rest=False):
+def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impacted=False, at_rest=False,
+                    passed=0.0):
     """The gear's mode after the crossings found at an event (step 1 of ``settle``); ``impacted``: a hard stop's
     impulse changed the speeds at this event (``impacts``); ``at_rest``: its relative acceleration is round-off and
-    no relief event keeps it rolling (``ModeLogic._still_relieved``)."""
+    no relief event keeps it rolling (``ModeLogic._still_relieved``); ``passed``: how far past zero speed a rolling
+    gear may be found at another function's root and still be taken as reaching it (``logic.PASSED_ZERO``)."""
     if dev.ideal:
         return FREE
     if initial or old == FREE or old == HELD:
@@ -32,6 +34,10 @@ def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impac
     # there (its acceleration round-off, its side a tie): stuck, it has its static limits, and the break-away
     # test of ``settle`` decides, by where the load goes at a tie (``ModeLogic._gear_tie_probe``)
     if crossed1 or (abs(w) <= scale and (w * arel < 0 or old * w < 0 or at_rest)):
+        return STUCK
+    if old * w < 0 and abs(w) <= passed:
+        # past zero beyond round-off, its own root not reported: another function's root was located first at this
+        # instant (``logic.PASSED_ZERO``); it has reached zero speed, and the break-away test decides
         return STUCK
     return old
 
