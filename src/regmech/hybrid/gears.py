@@ -56,8 +56,13 @@ def gear_events(dev, mode, quadrant, w, tau_loss, lam_g):
     if mode == FREE or mode == HELD:
         return 1.0, 1.0
     if mode == STUCK:
+        # the same offset for the margins of a stuck gear: an idle gear with no load has its loss torque and both
+        # limits at zero, and its margins crossed at round-off over and over (calibration seed 8031: a lossy
+        # planetary at rest, ChatteringError at t = 2e-7 s); a load past the limit by the offset is within
+        # ``logic.GEAR_TIE`` of it, where the load a moment later decides (``ModeLogic._gear_tie_probe``)
         hi, lo = dev.limits(tau_loss, lam_g)
-        return hi - tau_loss, tau_loss - lo
+        tie = 1e-10 * max(1.0, abs(tau_loss), abs(lam_g))
+        return hi - tau_loss + tie, tau_loss - lo + tie
     # the driving side changes when tau_eta crosses zero; an offset of 1e-10 of the torques (below the
     # tie threshold of _fix_quadrant, which then decides by where the torque goes) keeps a gear whose
     # tau_eta stays at round-off (an unloaded idler at constant speed: a Gearbox's idle gears) from
