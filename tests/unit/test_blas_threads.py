@@ -1,5 +1,6 @@
-"""``solvers.blas.one_blas_thread``: numpy's OpenBLAS at one thread in the calling thread during an ODE-form run,
-restored after it (also after an error); ``REGMECH_BLAS_THREADS`` overrides the count (0: BLAS left alone)."""
+"""``solvers.blas.one_blas_thread``: numpy's OpenBLAS at one thread during an ODE-form run, restored after it (also
+after an error, and after overlapping runs in threads); ``REGMECH_BLAS_THREADS`` overrides the count (0: BLAS left
+alone)."""
 
 import ctypes
 import glob
@@ -25,7 +26,7 @@ def _getter():
 
 get = _getter()
 pytestmark = pytest.mark.skipif(get is None or blas._setter() is None,
-                                reason="numpy does not link an OpenBLAS with a thread-local setter here")
+                                reason="numpy does not link an OpenBLAS with openblas_set_num_threads_local here")
 
 
 def _with_threads(n):
@@ -82,6 +83,35 @@ def test_an_ode_form_run_holds_one_thread(monkeypatch):
     try:
         m.simulate(0.5, solver="scipy:DOP853", rtol=1e-6)
         assert seen and set(seen) == {1}
+        assert get() == 2
+    finally:
+        _with_threads(previous)
+
+
+def test_overlapping_runs_in_threads_restore_the_count_once():
+    """Two runs in threads of one process, the first ending while the second runs (a review of the first version:
+    the second then restored the first's setting of one thread, and the process stayed at one)."""
+    import threading
+    previous = _with_threads(2)
+    try:
+        inside_b, a_done, seen = threading.Event(), threading.Event(), []
+
+        def run_a():
+            with blas.one_blas_thread():
+                inside_b.wait(5)
+            a_done.set()
+
+        def run_b():
+            with blas.one_blas_thread():
+                inside_b.set()
+                a_done.wait(5)
+                seen.append(get())          # still one thread: b runs on
+        ta, tb = threading.Thread(target=run_a), threading.Thread(target=run_b)
+        ta.start()
+        tb.start()
+        ta.join(10)
+        tb.join(10)
+        assert seen == [1]
         assert get() == 2
     finally:
         _with_threads(previous)

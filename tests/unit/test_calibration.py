@@ -82,3 +82,8 @@ def test_the_judge_measures_a_kind_at_rest_as_the_contract_does():
     run[:, 1] = 1e-9 * t
     value, signal = C._measure(run, ref, labels)
     assert signal == "clutch.T" and value > 100
+    # a ripple of 5e-4 on a large speed is a motion, not rest: a run that misses it is measured (a review's case)
+    ref[:, 0] = 300.0 + 5e-4 * np.sin(7 * t)
+    run[:, 0], run[:, 1] = 300.0, 0.0
+    value, signal = C._measure(run, ref, labels)
+    assert signal == "J.w" and value == pytest.approx(np.max(np.abs(run[:, 0] - ref[:, 0])) / np.ptp(ref[:, 0]))

@@ -103,10 +103,14 @@ class FrictionRows:
         clutch (C = 2.5e-5 J/K) warmed by 2e-14 to 4e-11 K, depending on the tolerances, and cooled as often
         (a loss element supplying power), and the accuracy contract tightened its runs to resolve that noise.
         The law's power is zero in those modes; the rates read it so."""
+        pin_w, pin_lam = self._pins(j, modes)
+        return (0.0 if pin_w else float(w[j])), (0.0 if pin_lam else float(lam_all[self.offset + j]))
+
+    @staticmethod
+    def _pins(j, modes) -> tuple[bool, bool]:
+        """Whether row ``j``'s mode pins its slip (Stuck) and its torque (Free, Held) at zero (``_pinned``)."""
         m = None if modes is None else int(modes[j])
-        wj = 0.0 if m == STUCK else float(w[j])
-        lj = 0.0 if m in (FREE, HELD) else float(lam_all[self.offset + j])
-        return wj, lj
+        return m == STUCK, m in (FREE, HELD)
 
     def _left(self, t):
         return t >= self.c._t_right
@@ -274,11 +278,9 @@ class FrictionRows:
                     r = self.devices[j].state_rates(wj, lj, t, left, q[j])
                     rates[(j, zk)] = tuple(np.asarray(x)[names.index(zk)] for x in r)
                 _, d_w, d_lam, d_q = rates[(j, zk)]
-                m = int(modes[j])
-                if m == STUCK:
-                    d_w = 0.0       # the rate reads w_rel = 0, whatever the speeds (``_pinned``)
-                elif m in (FREE, HELD):
-                    d_lam = 0.0     # ... lam = 0
+                pin_w, pin_lam = self._pins(j, modes)     # a pinned input: the rate does not read it (``_pinned``)
+                d_w = 0.0 if pin_w else d_w
+                d_lam = 0.0 if pin_lam else d_lam
                 if kind == "dw":
                     out[start] = -d_w
                 elif kind == "dlam":

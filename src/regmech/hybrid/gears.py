@@ -13,12 +13,10 @@ import numpy as np
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK
 
 
-def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impacted=False, at_rest=False,
-                    passed=0.0):
+def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impacted=False, at_rest=False):
     """The gear's mode after the crossings found at an event (step 1 of ``settle``); ``impacted``: a hard stop's
     impulse changed the speeds at this event (``impacts``); ``at_rest``: its relative acceleration is round-off and
-    no relief event keeps it rolling (``ModeLogic._still_relieved``); ``passed``: how far past zero speed a rolling
-    gear may be found at another function's root and still be taken as reaching it (``logic.PASSED_ZERO``)."""
+    no relief event keeps it rolling (``ModeLogic._still_relieved``)."""
     if dev.ideal:
         return FREE
     if initial or old == FREE or old == HELD:
@@ -34,10 +32,6 @@ def gear_first_step(dev, old, w, crossed1, crossed2, initial, scale, arel, impac
     # there (its acceleration round-off, its side a tie): stuck, it has its static limits, and the break-away
     # test of ``settle`` decides, by where the load goes at a tie (``ModeLogic._gear_tie_probe``)
     if crossed1 or (abs(w) <= scale and (w * arel < 0 or old * w < 0 or at_rest)):
-        return STUCK
-    if old * w < 0 and abs(w) <= passed:
-        # past zero beyond round-off, its own root not reported: another function's root was located first at this
-        # instant (``logic.PASSED_ZERO``); it has reached zero speed, and the break-away test decides
         return STUCK
     return old
 
@@ -61,15 +55,20 @@ def gear_events(dev, mode, quadrant, w, tau_loss, lam_g):
         # planetary at rest, ChatteringError at t = 2e-7 s); a load past the limit by the offset is within
         # ``logic.GEAR_TIE`` of it, where the load a moment later decides (``ModeLogic._gear_tie_probe``)
         hi, lo = dev.limits(tau_loss, lam_g)
-        tie = 1e-10 * max(1.0, abs(tau_loss), abs(lam_g))
+        tie = _event_tie(tau_loss, lam_g)
         return hi - tau_loss + tie, tau_loss - lo + tie
     # the driving side changes when tau_eta crosses zero; an offset of 1e-10 of the torques (below the
     # tie threshold of _fix_quadrant, which then decides by where the torque goes) keeps a gear whose
     # tau_eta stays at round-off (an unloaded idler at constant speed: a Gearbox's idle gears) from
     # firing a root at every step (it chattered, ChatteringError, at t ~ 1e-11 s)
-    tie = 1e-10 * max(1.0, abs(tau_loss), abs(lam_g))
+    tie = _event_tie(tau_loss, lam_g)
     speed = mode * w
     return (speed if speed != 0.0 else 1e-300), quadrant * dev.tau_eta(mode, abs(w), tau_loss, lam_g) + tie
+
+
+def _event_tie(tau_loss, lam_g) -> float:
+    """The offset of a gear's torque functions (``gear_events``): 1e-10 of its torques, at least of 1 N m."""
+    return 1e-10 * max(1.0, abs(tau_loss), abs(lam_g))
 
 
 class GearSides:

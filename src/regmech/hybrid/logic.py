@@ -24,15 +24,6 @@ from .gears import gear_first_step
 from .impacts import RELEASE_TOL
 
 
-#: a device sliding (a lossy gear rolling) found past zero slip at an event whose reported root is another
-#: function's, by at most this fraction of the largest speed (at least 1 m/s or rad/s), has reached zero slip: it is
-#: decided as stuck there (the break-away test then decides where it goes). Beyond round-off (1e-9 of the speeds)
-#: it used to keep its mode, and the check after the logic refused the run as a gap in the logic: calibration seed
-#: 8031, a LossyPlanetary rolling Forward whose driving side changed (its second function's root, reported) while
-#: its speed passed zero unseen, found at w_a = -4.3e-7 rad/s among speeds of 33 rad/s (ida at rtol 3e-6; IDA's
-#: local error allows 1e-4 there). 1e-6 is the default rtol's share of the speeds; a device found further past
-#: zero is still refused
-PASSED_ZERO = 1e-6
 #: a stuck device within this fraction of its capacity is probed a moment later (``_probe_breakaways``)
 PROBE_EDGE = 1e-6
 #: the probe's time step, relative to max(1, |t|) [s]
@@ -131,7 +122,6 @@ class ModeLogic:
         w = self.w_rel(v)
         arel = self.w_rel(a)
         scale = 1e-9 * max(1.0, abs_max(v))
-        passed = PASSED_ZERO * max(1.0, abs_max(v))
         # devices sliding at zero speed while another one holds the motion (see _relief_events):
         # their speed is zero by the holder's constraint, so its round-off sign says nothing;
         # only their relief event, or their holder letting go (``_still_relieved``), changes them
@@ -148,7 +138,7 @@ class ModeLogic:
             if dev.coupled:
                 new[j] = gear_first_step(dev, int(old[j]), w[j], crossed[2 * j] != 0, crossed[2 * j + 1] != 0,
                                          initial, scale, arel[j], impacted,
-                                         at_rest=abs(arel[j]) <= a_tol and j not in relief, passed=passed)
+                                         at_rest=abs(arel[j]) <= a_tol and j not in relief)
                 if old[j] == STUCK and new[j] != STUCK and \
                         self._gear_at_tie(dev, new[j], lam[self.offset + j], lam[self.coupled[j]]):
                     # its break-away function crossed at a tie: an idle gear with no load has its loss torque and
@@ -193,10 +183,6 @@ class ModeLogic:
                 # brake let go). A device that has just broken away has w_rel ~ 0 too, but accelerates
                 # away on its own side; one whose relief event is set (``_relief_events``) changes only
                 # by that event or by an event of its holder.
-                new[j] = STUCK
-            elif old[j] in (FORWARD, BACKWARD) and old[j] * w[j] < 0 and abs(w[j]) <= passed and not impacted:
-                # past zero slip beyond round-off, its own root not reported (another function's was): it has
-                # reached zero slip (``PASSED_ZERO``)
                 new[j] = STUCK
             elif old[j] == STUCK and crossed[2 * j] != 0:
                 # the root of tau0_max - |lam| was located (to round-off) on either side of zero:

@@ -11,14 +11,14 @@ that does not move)::
 
     estimate = max over signals i and output instants t of |e_i(t)| / range(kind of i)
 
-A kind *at rest* (its range within ``max(MAGNITUDE_FLOOR |y|max,
-ABSOLUTE_FLOOR)``: 1e-6 of its magnitude, at least 1e-12 SI units) has no
-range to be relative to. When both runs of a pair keep it at rest and agree
-within the two floors (``richardson.clear_at_rest``), that is the answer
-(it does not move): the kind is left out of the estimate and named in
-``stats.extra["at_rest"]``; nor does it scale the pair's atol
-(``motion_scale``). A kind at rest in both runs at values further apart, or
-moving in one, is judged as any other.
+A kind that moves by round-off only (its range at most ``ABSOLUTE_FLOOR``,
+1e-12 in its SI unit, in both runs of a pair) has no range to be relative
+to: the runs then agree within 2e-12 of it, which is the answer (it does
+not move), so the kind is left out of the estimate
+(``richardson.clear_at_rest``) and named in ``stats.extra["at_rest"]``; nor
+does it scale the pair's atol (``motion_scale``). A kind that moves by more
+in either run is judged as any other, against its floor of ``1e-6`` of its
+magnitude where its range is smaller.
 
 Signals that jump at a mode change (friction torques, accelerations) are
 not compared point by point: a switch-time error of 1e-9 s would show as an
@@ -123,7 +123,7 @@ import numpy as np
 
 from ..errors import AccuracyError, ParameterError, SimulationError
 from .common import check_times, output_grid, spread_rtol_floor
-from .richardson import StateLabel, clear_at_rest, kind_at_rest, kind_members, kind_scales
+from .richardson import StateLabel, clear_at_rest, kind_at_rest, kind_members, kind_scales, kind_unmoved
 
 #: the accuracy of ``solver="auto"`` when none is given: 1e-3 of the range of the signals of a kind
 DEFAULT_ACCURACY = 1e-3
@@ -690,19 +690,18 @@ def motion_scale(res, labels, grid, values=None) -> float:
     least, 1 at most): the magnitude the absolute tolerance of the contract's runs is scaled to.
     ``values``: the run's ``state_matrix``, when already at hand.
 
-    A kind at rest (``richardson.kind_at_rest``: its range within the measure's floors) is no motion, as in
-    ``magnitude_ratio`` and the estimate (``clear_at_rest``): counted, the round-off of a stuck clutch's
-    temperature rise (2e-14 K, calibration seed 9001) set the scale to its floor and the contract's atol to
-    1e-8 times its rtol, and IDA took 1.4 million steps where 349 did."""
+    A kind that moves by round-off only (``richardson.kind_unmoved``: at most 1e-12 SI units) is no motion, as
+    in the estimate (``clear_at_rest``): counted, the round-off of a stuck clutch's temperature rise (2e-14 K,
+    calibration seed 9001, before its heat read the stuck mode's zero slip) set the scale to its floor and the
+    contract's atol to 1e-8 times its rtol, and IDA took 1.4 million steps where 349 did."""
     if not labels:
         return 1.0
     values = state_matrix(res, labels, grid) if values is None else values
     rng = np.ptp(values, axis=0)
-    mag = np.max(np.abs(values), axis=0)
     moving = []
     for members in kind_members(labels):
-        r_k, m_k = float(rng[members].max()), float(mag[members].max())
-        if r_k > 0 and math.isfinite(r_k) and not kind_at_rest(r_k, m_k):
+        r_k = float(rng[members].max())
+        if r_k > 0 and math.isfinite(r_k) and not kind_unmoved(r_k):
             moving.append(r_k)
     return float(np.clip(min(moving), ATOL_SCALE_MIN, 1.0)) if moving else 1.0
 

@@ -15,12 +15,16 @@ thread on such a product is small even on an idle machine.
 
 So ``one_blas_thread()`` sets numpy's OpenBLAS to one thread
 (``openblas_set_num_threads_local``, OpenBLAS 0.3.27 and newer, which
-returns the count it replaces; in numpy's OpenBLAS 0.3.31 other threads of
-the process see the count too while the run lasts) for the length of a
-run, and restores the previous count after it, also on an error. Where
-numpy links another BLAS (MKL, Accelerate) or an older OpenBLAS without the
-thread-local call, it does nothing. ``REGMECH_BLAS_THREADS`` set in the
-environment (a number; 0: leave BLAS alone) overrides the count.
+returns the count it replaces) for the length of a run, and restores the
+previous count after it, also on an error. In numpy's OpenBLAS 0.3.31 the
+count is the process's, not the calling thread's: runs that overlap in
+threads of one process (``rm.sweep`` with a thread pool) share one setting,
+made by the first to start and restored by the last to end (a count of
+them under a lock), so that one run's end cannot restore the count under
+another, nor leave the process at one thread. Where numpy links another BLAS
+(MKL, Accelerate) or an older OpenBLAS without the call, it does nothing.
+``REGMECH_BLAS_THREADS`` set in the environment (a number; 0: leave BLAS
+alone) overrides the count.
 """
 
 from __future__ import annotations
@@ -29,11 +33,14 @@ import contextlib
 import ctypes
 import glob
 import os
+import threading
 
 #: the name of the thread-local setter in OpenBLAS (0.3.27+; it returns the previous count)
 _SETTER = "openblas_set_num_threads_local"
 
 _lib: list = []        # [setter or None], found once per process
+_guard = threading.Lock()
+_held = {"runs": 0, "previous": None}       # runs inside ``one_blas_thread`` now, and the count they replaced
 
 
 def _setter():
@@ -44,7 +51,11 @@ def _setter():
     try:
         import numpy
         here = os.path.dirname(numpy.__file__)
-        for path in sorted(glob.glob(os.path.join(here, os.pardir, "numpy.libs", "*openblas*.so*"))):
+        # where numpy's wheels keep their OpenBLAS: numpy.libs (Linux .so, Windows .dll), numpy/.dylibs (macOS)
+        found_libs = [p for pattern in (os.path.join(here, os.pardir, "numpy.libs", "*openblas*"),
+                                        os.path.join(here, ".dylibs", "*openblas*"))
+                      for p in sorted(glob.glob(pattern)) if p.endswith((".so", ".dll", ".dylib")) or ".so." in p]
+        for path in found_libs:
             lib = ctypes.CDLL(path)         # already loaded by numpy: the same library, not a second copy
             fn = getattr(lib, _SETTER, None)
             if fn is not None:
@@ -70,17 +81,25 @@ def _threads() -> int:
 
 @contextlib.contextmanager
 def one_blas_thread():
-    """numpy's OpenBLAS at one thread (or ``REGMECH_BLAS_THREADS``) while the block runs."""
+    """numpy's OpenBLAS at one thread (or ``REGMECH_BLAS_THREADS``) while the block runs; the count before the
+    first of overlapping blocks is restored when the last ends."""
     n = _threads()
     fn = _setter() if n else None
     if fn is None:
         yield
         return
-    previous = fn(n)
+    with _guard:
+        if _held["runs"] == 0:
+            previous = fn(n)
+            _held["previous"] = previous if previous >= 1 else None     # a count it cannot restore: leave it
+        _held["runs"] += 1
     try:
         yield
     finally:
-        fn(previous)
+        with _guard:
+            _held["runs"] -= 1
+            if _held["runs"] == 0 and _held["previous"] is not None:
+                fn(_held["previous"])
 
 
 __all__ = ["one_blas_thread"]
