@@ -1698,8 +1698,9 @@ def test_a_stuck_clutch_neither_warms_nor_cools(how):
 
 
 def test_an_open_clutch_neither_warms_nor_cools():
-    """The same law in the Free mode: no torque, so no heat however fast the clutch slips (the solvers meet its
-    ``lam = 0`` to their tolerances only; ``FrictionRows._pinned``)."""
+    """The same law in the Free mode: no torque, so no heat however fast the clutch slips (``FrictionRows._pinned``
+    reads the Free mode's lam as exactly 0). A guard, not a regression test: the old code's Free rows already
+    solved to an exact 0 on this model."""
     from regmech.components.heat import ThermalMass
     m = rm.Model("open_thermal_clutch")
     J1 = m.add(Inertia("J1", J=0.8, w0=50.0))

@@ -57,6 +57,12 @@ def test_the_environment_overrides_the_count(monkeypatch):
         monkeypatch.setenv("REGMECH_BLAS_THREADS", "0")
         with blas.one_blas_thread():
             assert get() == 3
+        from regmech.errors import ParameterError
+        monkeypatch.setenv("REGMECH_BLAS_THREADS", "two")
+        with pytest.raises(ParameterError, match="REGMECH_BLAS_THREADS='two'"):
+            with blas.one_blas_thread():
+                pass
+        assert get() == 3
     finally:
         _with_threads(previous)
 

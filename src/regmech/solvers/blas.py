@@ -69,14 +69,16 @@ def _setter():
 
 
 def _threads() -> int:
-    """The count a run asks for: 1, or ``REGMECH_BLAS_THREADS`` (0: leave BLAS alone)."""
+    """The count a run asks for: 1, or ``REGMECH_BLAS_THREADS`` (0: leave BLAS alone); anything but a whole
+    number >= 0 there is refused (a typo must not pass for a setting)."""
     text = os.environ.get("REGMECH_BLAS_THREADS", "").strip()
     if not text:
         return 1
-    try:
-        return max(0, int(text))
-    except ValueError:
-        return 1
+    if not text.isdigit():
+        from ..errors import ParameterError
+        raise ParameterError(f"REGMECH_BLAS_THREADS={text!r}: give a whole number of BLAS threads for regmech's "
+                             f"ODE-form runs (1, the default; 0 leaves numpy's BLAS as it is), or unset it")
+    return int(text)
 
 
 @contextlib.contextmanager

@@ -104,8 +104,8 @@ SAFETY = 0.8
 MAGNITUDE_FLOOR = 1e-6
 #: ... and at least against this absolute value (SI units of the state: rad, m, rad/s, m/s, ...)
 ABSOLUTE_FLOOR = 1e-12
-#: two runs that keep a kind at rest (its range within the floors above in both) agree when they differ by at
-#: most this many times its floor: the sum of their ranges (``clear_at_rest``)
+#: two runs that both keep a kind within ABSOLUTE_FLOOR of where it starts agree when they differ by at most this
+#: many times its scale (``ABSOLUTE_FLOOR`` there): the sum of their ranges (``clear_at_rest``)
 REST_AGREEMENT = 2.0
 #: |y_2h - y_4h| / |y_h - y_2h| below this: the error does not shrink with the step
 SHRINK_RATIO = math.sqrt(2.0)
