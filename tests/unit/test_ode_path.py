@@ -194,6 +194,45 @@ def test_deferred_accelerations_are_the_rows_recomputed_on_their_side_of_a_break
     assert res[f"{names[0]}.a"][at[1]] - res[f"{names[0]}.a"][at[0]] == pytest.approx(2.0 / J0, rel=1e-6)
 
 
+def test_rows_with_given_rates_allocate_no_rates_until_read(monkeypatch):
+    """The start and the breakpoint rows of a linear run come with y' (``_Sink.row``); they must not allocate the
+    rates of every row (on a chain of 10,000 inertias 17.8 MB of fresh memory a run that nobody read): the
+    recorder's y' array stays unallocated, and reading an acceleration gives the given rows' rates."""
+    from regmech.solvers import pages
+    sizes = []
+    zeros = pages.zeros
+    monkeypatch.setattr(pages, "zeros", lambda shape, dtype=float: sizes.append(shape) or zeros(shape, dtype))
+    m = chain(4, drive=Step(height=2.0, start_time=0.25))
+    res = m.simulate(0.5, 0.01, solver="scipy:DOP853", rtol=1e-8)
+    c = m.compile()
+    assert len(sizes) == 1 and sizes[0][1] == c.N and sizes[0][0] >= len(res.t)     # y of the rows only
+    traj = res._traj
+    assert traj._yp_fill is not None
+    names = c.structure.coord_names
+    at = np.nonzero(np.isclose(res.t, 0.25))[0]
+    y0, yp0 = c.initial_y(0.0, c.modes0)
+    assert np.array_equal(traj.YPv[0], yp0[c.iv])            # the starting row's given rates, as they were given
+    assert len(sizes) == 2 and sizes[1] == (len(res.t), len(yp0))
+    # the right-hand row at the breakpoint (given by the driver) reads the step, the left one (interpolated) not
+    J0 = float(m[names[0]].J)
+    assert res[f"{names[0]}.a"][at[1]] - res[f"{names[0]}.a"][at[0]] == pytest.approx(2.0 / J0, rel=1e-6)
+
+
+def test_a_non_finite_given_rate_is_refused(monkeypatch):
+    m = chain(3)
+    c = m.compile()
+    real = c.initial_y
+
+    def bad_start(t, modes):
+        y, yp = real(t, modes)
+        yp = yp.copy()
+        yp[0] = np.nan
+        return y, yp
+    monkeypatch.setattr(c, "initial_y", bad_start)
+    with pytest.raises(rm.SimulationError, match="non-finite .* at t=0"):
+        m.simulate(0.1, 0.01, solver="scipy:DOP853")
+
+
 def test_deferred_accelerations_survive_pickling():
     import pickle
     m = chain(3, drive=Step(height=1.0, start_time=0.1))

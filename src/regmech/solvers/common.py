@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from ..errors import AccuracyError, ParameterError, SimulationError, SimulationTimeout
+from . import pages
 
 
 def check_times(t_start, t_end, dt_out):
@@ -195,23 +196,23 @@ class Recorder:
             # zeros (calloc: fresh pages of a large array are zero without being written), so that a row handed
             # out by ``row_buffers`` is zero already: on a 10,000-inertia chain, zeroing each output row of y and
             # y' cost 14 % of a DOP853 run (the pages' first touch)
-            self.Y = np.zeros((self.capacity, width))
+            self.Y = pages.zeros((self.capacity, width))
             self.yp_width = width if self.yp_cols is None else len(self.yp_cols)
         if self.k + rows > self.capacity:
             grown = max(self.k + rows, self.capacity + max(self.capacity // 2, 16))
             self.T = np.resize(self.T, grown)
             self.L = np.resize(self.L, grown)
             self.MO = np.resize(self.MO, (grown, self.mw))
-            Y = np.zeros((grown, self.Y.shape[1]))
+            Y = pages.zeros((grown, self.Y.shape[1]))
             Y[:self.k] = self.Y[:self.k]
             if self.YP is not None:
-                YP = np.zeros((grown, self.YP.shape[1]))
+                YP = pages.zeros((grown, self.YP.shape[1]))
                 YP[:self.k] = self.YP[:self.k]
                 self.YP = YP
             self.Y, self.capacity = Y, grown
         if rates and self.YP is None:
             # the rows before (if any) wait for their y' (``row_buffer``): zero until filled
-            self.YP = np.zeros((self.capacity, self.yp_width))
+            self.YP = pages.zeros((self.capacity, self.yp_width))
 
     def add(self, t, y, yp, modes, left=False):
         self._reserve(len(y))
@@ -271,6 +272,12 @@ class Recorder:
             self.MO[k] = modes
         self.k = k + 1
 
+    @staticmethod
+    def refuse_non_finite(t):
+        """The error of a row that is not finite at ``t``."""
+        raise SimulationError(f"the solution became non-finite (NaN/inf) at t={t:.6g}; the model or the solver "
+                              f"settings are unstable there (try a tighter tolerance or a stable solver)")
+
     def arrays(self):
         """``(T, Y, YP, L, MO)`` of the rows so far; ``YP`` is None when no row has written ``y'`` (every row's
         rates are left to ``row_buffer``'s caller, which checks them when it fills them)."""
@@ -281,10 +288,7 @@ class Recorder:
             Y, YP = self.Y[:k], (self.YP[:k] if self.YP is not None else None)
         if not (np.all(np.isfinite(Y)) and (YP is None or np.all(np.isfinite(YP)))):
             bad = np.zeros(k, bool) if YP is None else ~np.all(np.isfinite(YP), axis=1)
-            bad = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | bad)[0][0])
-            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.T[bad]:.6g}; the model or "
-                                  f"the solver settings are unstable there (try a tighter tolerance or a stable "
-                                  f"solver)")
+            self.refuse_non_finite(self.T[int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | bad)[0][0])])
         return self.T[:k].copy(), Y, YP, self.L[:k].copy(), self.MO[:k].copy()
 
 

@@ -42,6 +42,7 @@ from ..errors import SimulationError
 from ..hybrid import attach, guards_for
 from ..result import Event, Result, Stats
 from .blas import one_blas_thread
+from . import pages
 from .common import Recorder, check_times, output_grid, run_deadline, scale_hint, signal_breakpoints
 from .divergence import (BLOW_UP, FEW_STEPS, FEW_STEPS_MAX_SIZE, MAX_GROWTH, ROUGH,  # noqa: F401 (BLOW_UP
                          ROUGH_STEPS, GrowthWatch)                                 # is re-exported)
@@ -546,10 +547,25 @@ class _Sink:
         # rows of the linear form whose y' is computed only when an output reads it (``deferred_rates``):
         # (row, t, side of the time-varying offsets)
         self._pending: list[tuple[int, float, bool]] = []
+        # rows of the linear form recorded with their y' given (the start, breakpoints, events) while the recorder
+        # has no y' array: (row, y'), written when an output reads the rates (``deferred_rates``)
+        self._given: list[tuple[int, np.ndarray]] = []
 
     def row(self, t, y, yp, modes, left=False):
-        if self.rec is not None:
-            self.rec.add(t, y, yp, modes, left=left)
+        """A row whose ``y`` and ``y'`` are known (the start, a breakpoint, an event)."""
+        rec = self.rec
+        if rec is None:
+            return
+        if self.linear and rec.YP is None:
+            # its y' waits with the deferred rows': one given row must not allocate y' for every row (on a chain
+            # of 10,000 inertias, 17.8 MB of fresh pages a run for the starting row's rates)
+            if not np.all(np.isfinite(yp)):
+                rec.refuse_non_finite(t)
+            rec.row_buffer(len(y))[:] = y
+            self._given.append((rec.k, np.array(yp if rec.yp_cols is None else np.asarray(yp)[rec.yp_cols], float)))
+            rec.commit(t, modes, left)
+        else:
+            rec.add(t, y, yp, modes, left=left)
 
     @property
     def takes_blocks(self) -> bool:
@@ -596,19 +612,23 @@ class _Sink:
     def deferred_rates(self, YP):
         """``YP`` (the recorder's ``y'``) when every row of it is filled (zero rows when there are none); else a
         function that fills the rows ``state`` left (``g(t, u)`` of each, from its row of ``y``, with the side of
-        the offsets it had then: the same numbers as at once) and returns ``YP`` (allocated then, zero, when no
-        row had written it: ``Recorder.row_buffer``). A non-finite ``y'`` is refused there as the recorder
-        refuses a non-finite row."""
-        if not self._pending:
-            return YP if YP is not None else np.zeros((self.rec.k, self.rec.yp_width))
-        c, form, pending = self.c, self.form, list(self._pending)
+        the offsets it had then: the same numbers as at once) and the rows ``row`` kept aside (their given ``y'``),
+        and returns ``YP`` (allocated then, zero, when no row had written it: ``Recorder.row_buffer``). A
+        non-finite ``y'`` is refused there as the recorder refuses a non-finite row (a given one already in
+        ``row``)."""
+        if not self._pending and not self._given:
+            return YP if YP is not None else pages.zeros((self.rec.k, self.rec.yp_width))
+        c, form, pending, given = self.c, self.form, list(self._pending), list(self._given)
         Y, rows, width = self.rec.Y, self.rec.k, self.rec.yp_width
         self._pending.clear()
+        self._given.clear()
 
         def fill():
             nonlocal YP
             if YP is None:
-                YP = np.zeros((rows, width))
+                YP = pages.zeros((rows, width))
+            for k, yp in given:
+                YP[k] = yp
             n = c.n
             for k, t, left in pending:
                 y = Y[k]
