@@ -265,3 +265,34 @@ def test_the_compiled_stage_sweep_gives_the_loops_numbers(solver, monkeypatch):
     b = m.simulate(0.2, 1e-3, solver=solver, rtol=1e-7)
     assert a.stats.steps == b.stats.steps and a.stats.rhs_calls == b.stats.rhs_calls
     np.testing.assert_array_equal(a._traj.Y, b._traj.Y)
+
+
+def test_the_compiled_passes_leave_out_terms_of_zero_weight_and_keep_the_sums():
+    """``_dopri_kernels._combine`` skips the zero weights of the tables (a third of DOP853's: each would read a row
+    of stages from memory): the sums are the plain ones in stage order to the last bit, a zero first weight or
+    zero weights only included, and a non-finite row of zero weight does not reach them."""
+    pytest.importorskip("numba")
+    from regmech.solvers import _dopri_kernels as k
+    rng = np.random.default_rng(7)
+    n = 3 * k.BLOCK + 17                                # whole blocks and a partial one
+    K = rng.standard_normal((6, n))
+    y0, y1 = rng.standard_normal(n), rng.standard_normal(n)
+    for w in ([0.0, 0.5, 0.0, -1.25, 2.0, 0.0], [0.3, 0.0, 0.0, 0.0, 0.0, 0.7], [0.0] * 6):
+        w = np.array(w)
+        out = np.empty(n)
+        k.blend(y0, y1, 0.25, K, w, 6, 0.01, out)
+        acc = np.zeros(n)                              # the plain sum in stage order, zero terms included
+        first = True
+        for j in range(6):
+            if first:
+                acc, first = w[j] * K[j], False
+            else:
+                acc = acc + w[j] * K[j]
+        want = y0 + 0.25 * (y1 - y0) + 0.01 * acc
+        np.testing.assert_array_equal(out, want)
+    K[2, 5] = np.nan                                   # in a row of zero weight: not in the sums
+    w = np.array([0.0, 0.5, 0.0, -1.25, 2.0, 0.0])
+    k.blend(y0, y0, 0.0, K, w, 6, 0.01, out)
+    assert np.all(np.isfinite(out))
+    e5, e3 = k.blended_sums(K, w, w[::-1].copy(), 6, y0, y1, np.full(n, 1e-6), 1e-3)
+    assert math.isfinite(e5) and math.isnan(e3)        # the reversed weights give row 2 the weight -1.25
