@@ -36,3 +36,23 @@ def test_a_free_rows_torque_is_exactly_zero_whatever_its_multiplier_holds():
     traj.Y[free, col] = 1e-18              # the round-off another machine's solve may leave there
     res._cache.clear()
     assert np.all(res["cl.tau"][free] == 0.0) and np.all(res["cl.power"][free] == 0.0)
+
+
+def test_a_stuck_rows_slip_power_and_heat_are_exactly_zero_whatever_the_speeds_hold():
+    """The mirror rule: a Stuck row's law is ``w_rel = 0``; its relative speed, power and heat flow read exactly
+    zero, whatever residue of that constraint the solvers left in the speeds (else ``heat_flow = lam w_rel`` is
+    noise of either sign there: a loss element supplying power)."""
+    from regmech.modes import STUCK
+    res = rm.library.coupled_clutches().simulate(1.5, 1e-2, solver="ida")
+    stuck = res["clutch1.mode"] == STUCK
+    assert stuck.any() and (~stuck).any()
+    assert np.any(res["clutch1.heat_flow"][~stuck] > 0.0)
+    traj = res._traj
+    c = traj.c
+    k = c.structure.coord_names.index("J2")
+    traj.Y[stuck, c.iv[k]] += 1e-9           # a residue of the stuck constraint in the second inertia's speed
+    res._cache.clear()
+    traj._recipes.clear()
+    assert np.all(res["J2.w"][stuck] != res["J1.w"][stuck])         # the speeds do carry it
+    for name in ("w_rel", "power", "heat_flow"):
+        assert np.all(res[f"clutch1.{name}"][stuck] == 0.0), name

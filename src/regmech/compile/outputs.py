@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..modes import FREE, HELD
+from ..modes import FREE, HELD, STUCK
 
 
 class Trajectory:
@@ -237,6 +237,11 @@ class Trajectory:
                     r = [int(x) for x in inst[0].row_index[inst[1]]].index(i)
                     return lambda: kernel_out()[r]
                 level = {"e": 0, "de": 1, "dde": 2}[what]
+                if level == 1 and kind == "g" and 0 <= i - c.mp - c.mv < c.mf:
+                    # a Stuck row's law is w_rel = 0: exactly zero, not the solvers' residue of it, which made the
+                    # device's power and heat_flow (lam w_rel) noise of either sign there (a loss element
+                    # supplying power, 1e-12 W); its own states' rates read it so (``friction_rows._pinned``)
+                    return lambda j=i - c.mp - c.mv: np.where(self.modes[:, j] == STUCK, 0.0, self._row_e(w, 1))
                 return lambda: self._row_e(w, level)
 
             for nm, what in zip(names, ("e", "de", "dde", "tau")):
@@ -266,21 +271,22 @@ class Trajectory:
             for name, j in maps["states"].get(dev.name, ()):
                 idx[name] = lambda j=j: self.Y[:, c.iz[j]] + c.state_datum[j]
             if dev.derived_units:
-                self._derived_recipes(dev, idx, where, taus, maps)
+                self._derived_recipes(dev, idx, where, taus, dess, maps)
             for j in maps["modes"].get(dev.name, ()):
                 idx[f"{dev.name}.mode"] = lambda j=j: self.modes[:, j].astype(float)
         return idx
 
-    def _derived_recipes(self, dev, idx, where, taus, maps) -> None:
+    def _derived_recipes(self, dev, idx, where, taus, dess, maps) -> None:
         """Recipes of the device's ``derived_units`` (``Device.derived``): all computed together on the
-        first request, from the rows, forces and states of this one instance."""
+        first request, from the rows, forces and states of this one instance (``taus``, ``dess``: the recipes of
+        its rows' forces and relative speeds, with what a friction row's mode pins at zero)."""
         from ..errors import ModelError, RegmechError
         cache: dict = {}
 
         def compute():
             if "out" not in cache:
                 e = [self._row_e(w, 0) for w in where]
-                de = [self._row_e(w, 1) for w in where]
+                de = [np.asarray(df(), float) for df in dess]
                 tau = [np.asarray(tf(), float) for tf in taus]
                 z = {name.rpartition(".")[2]: self.Y[:, self.c.iz[j]] + self.c.state_datum[j]
                      for name, j in maps["states"].get(dev.name, ())}
