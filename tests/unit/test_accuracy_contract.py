@@ -573,6 +573,11 @@ def test_a_kind_at_rest_in_both_runs_is_left_out_of_the_estimate():
     moved[:, 1] = 1e-9 * grid                  # moves in one run: judged against its range
     est = compare_states(a, moved, labels, grid)
     assert est.signal == "clutch.T" and est.value == pytest.approx(1.0, rel=1e-3)
+    # every kind at rest or the runs equal: an estimate of 0 names no worst signal (it named the first label)
+    same = b.copy()
+    same[:, 0] = a[:, 0]
+    est = compare_states(a, same, labels, grid)
+    assert est.value == 0.0 and est.signal == "" and est.component == "" and est.at_rest == ("clutch.T",)
 
 
 def test_a_retry_never_runs_below_the_lowest_rtol(monkeypatch):

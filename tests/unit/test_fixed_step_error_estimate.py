@@ -306,3 +306,18 @@ def test_expm_suggests_its_step_with_the_order_it_shows(h, tol):
     assert "faster than the guaranteed order 2" in str(info.value)
     res = m.simulate(4.0, 0.1, solver="expm", h=h_new, tol=tol)
     assert tol / 100 <= res.stats.error_estimate <= tol
+
+
+def test_a_pair_that_agrees_everywhere_names_no_worst_signal():
+    """A model at rest (no load, no start motion): both runs of the pair are exactly zero, the estimate is 0 and
+    no signal is named the worst (the first state's name came back before)."""
+    m = rm.Model("at rest")
+    fixed = m.add(Fixed("fixed"))
+    body = m.add(Inertia("J", J=J))
+    link = m.add(SpringDamper("link", c=C, d=D))
+    m.connect(body.flange_b, link.flange_a)
+    m.connect(link.flange_b, fixed.flange)
+    res = m.simulate(0.5, DT_OUT, solver="rk4", h=1e-2, tol=0.5)
+    assert res.stats.error_estimate == 0.0
+    assert res.stats.extra["error_signal"] == "" and res.stats.extra["error_component"] == ""
+    assert "worst" not in str(res.stats)

@@ -325,6 +325,9 @@ def compare_states(va, vb, labels, grid) -> Estimate:
         return Estimate(math.inf, lab.signal, lab.component, lab.kind, float(grid[int(bad[0])]))
     d, rest = clear_at_rest(d, labels, va, vb)
     k, i = np.unravel_index(int(np.argmax(d)), d.shape)
+    if not d[k, i] > 0.0:
+        # the runs agree everywhere (or every kind is at rest): no signal is the worst one, none is named
+        return Estimate(0.0, "", "", "", float(grid[-1]), tuple(rest))
     lab = labels[int(i)]
     return Estimate(float(d[k, i]), lab.signal, lab.component, lab.kind, float(grid[k]), tuple(rest))
 

@@ -449,8 +449,10 @@ def _record(st, tol, order, est, d, labels, stats_c, ratio, elapsed, **more):
     """The estimate into the main run's stats; ``wall_time`` = the main run + all companions so far."""
     st.error_estimate = est
     st.wall_time = st.extra.setdefault("wall_time_main", st.wall_time) + elapsed
-    st.extra.update({"error_tol": tol, "error_order": order, "error_signal": labels[d.index].signal if labels
-                     else "", "error_component": labels[d.index].component if labels else "", "error_t": d.t, "companion_steps": stats_c.steps,
+    named = bool(labels) and d.value > 0.0         # no worst signal where the runs agree everywhere
+    st.extra.update({"error_tol": tol, "error_order": order, "error_signal": labels[d.index].signal if named
+                     else "", "error_component": labels[d.index].component if named else "", "error_t": d.t,
+                     "companion_steps": stats_c.steps,
                      "companion_rhs_calls": stats_c.rhs_calls, "companion_ratio": ratio,
                      "error_estimate_time": elapsed,
                      # the mode changes of the companion behind the estimate (compared by solvers.accuracy)
