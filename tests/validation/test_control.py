@@ -375,3 +375,24 @@ def test_a_pi_in_and_out_of_its_limits_is_located_and_accurate(solver):
     assert [e.t for e in limit_events] == pytest.approx(crossings, abs=1e-7)
     err = np.max(np.abs(res["J1.w"] - w_hand)) / np.ptp(w_hand)
     assert err < 1e-6, err
+
+
+def test_a_derived_energy_named_in_derived_integrals_is_integrated_between_the_rows():
+    """A user device's derived energy declared the integral of its derived power (``derived_integrals``) is
+    computed by the quadrature between the rows, not by whatever ``derived`` returns for it (here a wrong value
+    on purpose): a source whose power p = tau w on an inertia from rest gives e = J w^2 / 2 (tau constant)."""
+    class Metered(rm.components.Torque):
+        derived_units = {"p": "W", "e": "J"}
+        derived_integrals = {"e": "p"}
+
+        def derived(self, t, left, e, de, tau, z):
+            p = np.asarray(tau[0], float) * np.asarray(de[0], float)
+            return {"p": -p, "e": np.zeros(len(t))}           # e left wrong: the quadrature must replace it
+    m = rm.Model("metered")
+    src = m.add(Metered("src", tau=2.0))
+    plant = m.add(Inertia("plant", J=0.5))
+    m.connect(src.flange, plant.flange_a)
+    res = m.simulate(t_end=1.0, dt_out=0.1, solver="ida", rtol=1e-10)
+    kinetic = 0.5 * 0.5 * res["plant.w"] ** 2
+    assert np.all(res["src.p"][1:] > 0.0)                    # sign checked: the source delivers power
+    np.testing.assert_allclose(res["src.e"], kinetic, rtol=1e-7, atol=1e-9)

@@ -46,8 +46,11 @@ def test_constant_power_slip_closed_form(solver, G):
     np.testing.assert_allclose(res["b.T"], exact, rtol=1e-7, atol=0)
     # books: heat stored in the mass + heat to ambient = the dissipated work (exact here: P is constant)
     np.testing.assert_allclose(res["b.heat"], P * t, rtol=1e-9, atol=1e-6)
+    # heat_to_ambient is integrated from the laws between the rows like heat (the trapezoid over the rows, before:
+    # 3.2e-7 of the heat off at G = 4), so the books close to the run's tolerance
+    np.testing.assert_allclose(res["b.heat_flow_to_ambient"], G * (res["b.T"] - T_amb), rtol=1e-12, atol=1e-12)
     books = res["b.heat_stored"] + res["b.heat_to_ambient"]
-    np.testing.assert_allclose(books, res["b.heat"], rtol=1e-6, atol=1e-3 * P)
+    np.testing.assert_allclose(books, res["b.heat"], rtol=0, atol=2e-8 * res["b.heat"][-1])
 
 
 def test_free_and_stuck_modes_exchange_heat_with_ambient_only():

@@ -30,6 +30,10 @@ import numpy as np
 
 from ..modes import FREE, HELD, STUCK
 
+#: which derived signals are time integrals of which (``Trajectory.integral_rate``), unless a device says otherwise
+#: (``derived_integrals``)
+DEFAULT_INTEGRALS = {"heat": "heat_flow"}
+
 
 class Trajectory:
     """The output rows of a run and the compiled system that reads them.
@@ -359,13 +363,16 @@ class Trajectory:
 
     def integral_rate(self, name: str) -> str | None:
         """The signal whose time integral ``name`` is, or None: a device's ``heat`` [J] is the integral of its
-        ``heat_flow`` [W] (``components.heat``), which ``Result`` computes from the model's laws between the
-        rows (``solvers.quadrature``) rather than by the trapezoid of ``Device.derived``."""
+        ``heat_flow`` [W], a thermal mass's ``heat_to_ambient`` [J] that of its ``heat_flow_to_ambient`` [W]
+        (a device's ``derived_integrals``, by default ``{"heat": "heat_flow"}``), which ``Result`` computes from
+        the model's laws between the rows (``solvers.quadrature``) rather than by the trapezoid of
+        ``Device.derived``."""
         owner, _, key = name.rpartition(".") if isinstance(name, str) else ("", "", "")
         comp = self.c.model.components.get(owner)
         units = getattr(comp, "derived_units", None) or {}
-        if key == "heat" and "heat" in units and "heat_flow" in units:
-            return f"{owner}.heat_flow"
+        rate = (getattr(comp, "derived_integrals", None) or DEFAULT_INTEGRALS).get(key)
+        if rate is not None and key in units and rate in units:
+            return f"{owner}.{rate}"
         return None
 
     def get(self, name: str) -> np.ndarray | None:
