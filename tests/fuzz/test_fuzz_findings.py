@@ -828,13 +828,21 @@ def test_heat_quadrature_work_is_bounded_per_read():
     """Campaign seed 60105 (two lossy gears, a brake, a tanh drive): reading ``brake1.heat`` integrated 65 output
     intervals again at about 11,000 evaluations each, 97 s for a 0.13 s run (the campaign's child gave no verdict
     in 420 s: a "hang"). The re-integrations of one read now share ``TOTAL_RHS_CALLS``; the intervals beyond keep
-    Simpson's value, counted whole in the estimate, and a RuntimeWarning says so."""
+    Simpson's value, counted whole in the estimate, and a RuntimeWarning says so.
+
+    Session 23: the brake is Stuck in every row, and its heat flow was the solvers' residue of ``w_rel = 0`` times
+    its holding torque, noise that no quadrature follows. A Stuck row's slip reads exactly 0 now: the brake's heat is
+    0 at no work. The lossy gears' heat still takes the bound."""
     from regmech.bench.fuzz import generate_seed
+    from regmech.modes import STUCK
     from regmech.solvers.quadrature import EXPLICIT_RHS_CALLS, MAX_RHS_CALLS, TOTAL_RHS_CALLS
     spec = generate_seed(60105, families=FAMILIES_BEFORE_S9)
     res = spec.build().simulate(spec.t_end, dt_out=spec.dt_out, solver="ida", rtol=1e-8)
+    assert np.all(res["brake1.mode"] == STUCK)
+    heat, estimate = res.integral("brake1.heat_flow", error=True)
+    assert np.all(heat == 0.0) and estimate == 0.0 and res.stats.extra["quadrature"]["rhs_calls"] == 0
     with pytest.warns(RuntimeWarning, match="could not follow the model's laws"):
-        heat, estimate = res.integral("brake1.heat_flow", error=True)
+        heat, estimate = res.integral("lgear1.heat_flow", error=True)
     q = res.stats.extra["quadrature"]
     assert q["rhs_calls"] <= TOTAL_RHS_CALLS + EXPLICIT_RHS_CALLS + 2 * MAX_RHS_CALLS
     assert np.all(np.isfinite(heat)) and np.isfinite(estimate) and estimate > 0

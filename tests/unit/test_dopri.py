@@ -296,3 +296,23 @@ def test_the_compiled_passes_leave_out_terms_of_zero_weight_and_keep_the_sums():
     assert np.all(np.isfinite(out))
     e5, e3 = k.blended_sums(K, w, w[::-1].copy(), 6, y0, y1, np.full(n, 1e-6), 1e-3)
     assert math.isfinite(e5) and math.isnan(e3)        # the reversed weights give row 2 the weight -1.25
+
+
+@pytest.mark.parametrize("cls", [dopri.Dop853, dopri.Dopri5], ids=["dop853", "dopri5"])
+def test_a_non_finite_rate_at_the_step_end_rejects_the_step(cls, path):
+    """DOP853's error weights give the step end's rate ``f_new`` none, and the compiled sums leave out terms of zero
+    weight: a NaN there kept the norm finite and the step was taken, its NaN the next step's first stage (the review
+    of session 23). Now the step is rejected and shrunk, as for any non-finite stage."""
+    s = cls(spring_chain(3), 0.0, np.r_[0.01, 0.0, 0.0, 0.0, 0.0, 0.0], 1.0, rtol=1e-6, atol=1e-8)
+    real, calls = s._eval, []
+
+    def once_nan(t, y):                         # the first f_new of the run is NaN, the others as they are
+        calls.append(t)
+        f = real(t, y)
+        return np.full_like(f, np.nan) if len(calls) == 1 else f
+    s._eval = once_nan
+    h_first = s.h_abs
+    assert s.step() is None
+    assert len(calls) >= 2                      # the NaN step was tried again
+    assert np.all(np.isfinite(s.f)) and np.all(np.isfinite(s.y))
+    assert s.t < h_first                        # shrunk: the rejected trial was the first guess

@@ -53,6 +53,9 @@ def test_a_stuck_rows_slip_power_and_heat_are_exactly_zero_whatever_the_speeds_h
     traj.Y[stuck, c.iv[k]] += 1e-9           # a residue of the stuck constraint in the second inertia's speed
     res._cache.clear()
     traj._recipes.clear()
+    traj.YPv[stuck, k] += 1e-3                # and of its derivative in the acceleration
     assert np.all(res["J2.w"][stuck] != res["J1.w"][stuck])         # the speeds do carry it
-    for name in ("w_rel", "power", "heat_flow"):
+    assert np.all(res["J2.a"][stuck] != res["J1.a"][stuck])
+    for name in ("w_rel", "a_rel", "power", "heat_flow"):
         assert np.all(res[f"clutch1.{name}"][stuck] == 0.0), name
+    assert np.any(res["clutch1.a_rel"][~stuck] != 0.0)

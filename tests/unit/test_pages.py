@@ -73,3 +73,21 @@ def test_a_runs_recorder_is_allocated_with_the_request_off(monkeypatch):
         assert seen and seen[0] is False, solver
         assert seen[1::2] == [before] * (len(seen) // 2), solver          # each allocation put it back
     assert _setting() is before
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="no fork here")
+def test_a_child_forked_while_another_thread_allocates_does_not_wait_forever():
+    """The lock held by another thread at ``fork`` is held in the child for good: the child gets a lock of its own
+    (``os.register_at_fork``), in ``pages`` and in ``blas``."""
+    import os
+    from regmech.solvers import blas
+    for module in (pages, blas):
+        module._guard.acquire()                  # as if another thread were inside its critical section
+        try:
+            pid = os.fork()
+            if pid == 0:                         # the child: its lock is free
+                os._exit(0 if module._guard.acquire(timeout=5) else 1)
+            _, status = os.waitpid(pid, 0)
+            assert os.waitstatus_to_exitcode(status) == 0, module.__name__
+        finally:
+            module._guard.release()

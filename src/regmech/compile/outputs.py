@@ -241,11 +241,14 @@ class Trajectory:
                     r = [int(x) for x in inst[0].row_index[inst[1]]].index(i)
                     return lambda: kernel_out()[r]
                 level = {"e": 0, "de": 1, "dde": 2}[what]
-                if level == 1 and kind == "g" and 0 <= i - c.mp - c.mv < c.mf:
-                    # a Stuck row's law is w_rel = 0: exactly zero, not the solvers' residue of it, which made the
-                    # device's power and heat_flow (lam w_rel) noise of either sign there (a loss element
-                    # supplying power, 1e-12 W); its own states' rates read it so (``friction_rows._pinned``)
-                    return lambda j=i - c.mp - c.mv: np.where(self.modes[:, j] == STUCK, 0.0, self._row_e(w, 1))
+                if level and kind == "g" and 0 <= i - c.mp - c.mv < c.mf:
+                    # a Stuck row's law is w_rel = 0 (and so a_rel = 0): exactly zero, not the solvers' residue of
+                    # it, which made the device's power and heat_flow (lam w_rel) noise of either sign there (a loss
+                    # element supplying power: 1e-12 W on CoupledClutches, 4e-5 W on six_speed_car's stuck shift
+                    # clutch with IDA at rtol 1e-6) and a_rel up to 0.1 rad/s^2 there; its own states' rates read
+                    # it so (``friction_rows._pinned``). The flanges' speeds keep the residue (2e-7 rad/s there)
+                    return lambda j=i - c.mp - c.mv: np.where(self.modes[:, j] == STUCK, 0.0,
+                                                              self._row_e(w, level))
                 return lambda: self._row_e(w, level)
 
             for nm, what in zip(names, ("e", "de", "dde", "tau")):

@@ -38,7 +38,8 @@ def _combine(K, a, rows, i0, m, acc):
     error weights 8 of 13, the dense output's stages 24 of 42), and each term reads a row of K from memory, the
     cost of these passes on a large model. A term ``0 K[j, i]`` adds an exact zero, so the sums are the same
     numbers (up to the sign of a sum that is exactly zero), except that a non-finite entry of a row of zero
-    weight does not turn them into NaN: a non-finite stage is found where it has weight (the error norm)."""
+    weight does not turn them into NaN. Every stage but the step's end rate has weight in a later stage or in the
+    error norm; that rate has none in DOP853's error weights, so ``DormandPrince._step_impl`` tests it apart."""
     first = True
     for j in range(rows):
         aj = a[j]

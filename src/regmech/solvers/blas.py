@@ -43,6 +43,17 @@ _guard = threading.Lock()
 _held = {"runs": 0, "previous": None}       # runs inside ``one_blas_thread`` now, and the count they replaced
 
 
+def _new_lock_in_child() -> None:
+    """A child made by ``fork`` while another thread held ``_guard`` would inherit it held, with no thread to
+    release it: its first call here would wait forever. The child starts with a lock of its own."""
+    global _guard
+    _guard = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_new_lock_in_child)
+
+
 def _setter():
     """OpenBLAS's thread-local setter of numpy's own BLAS, or None (another BLAS, or none found)."""
     if _lib:

@@ -100,6 +100,12 @@ def initial_step(fun, t0, y0, f0, t_bound, max_step, order, rtol, atol) -> float
     return min(100.0 * h0, h1, span, max_step)
 
 
+def _all_finite(v) -> bool:
+    """Whether every entry of ``v`` is finite: one summing pass (a NaN or inf makes the sum non-finite), the
+    entries tested one by one only when the sum is not finite (it may overflow on finite entries)."""
+    return math.isfinite(float(np.add.reduce(v))) or bool(np.all(np.isfinite(v)))
+
+
 def _stage_numpy(y, K, coef, s, h, out, work):
     """``out = y + h sum_{j<s} coef_j K_j`` without new arrays (``work``: length-n scratch)."""
     np.dot(coef[:s], K[:s], out=work)
@@ -254,9 +260,11 @@ class DormandPrince:
             f_new = self._eval(t + h, y_new)
             K[S] = f_new
             norm = self._error_norm(y, y_new, h)
-            if not math.isfinite(norm):
+            if not (math.isfinite(norm) and _all_finite(f_new)):
                 # NaN or inf in a stage: shrink as for a large error (as scipy), which recovers from an overflow of
-                # a too long trial step; one that persists fails at the spacing of numbers
+                # a too long trial step; one that persists fails at the spacing of numbers. The end's rate f_new
+                # is tested apart: DOP853's error weights give it none (and the compiled sums leave out the terms
+                # of zero weight), so a non-finite f_new kept the norm finite and the step was taken
                 norm = math.inf
             if norm < 1.0:
                 factor = MAX_FACTOR if norm == 0.0 else min(MAX_FACTOR, SAFETY * norm ** self.error_exponent)
