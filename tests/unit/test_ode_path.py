@@ -218,19 +218,23 @@ def test_rows_with_given_rates_allocate_no_rates_until_read(monkeypatch):
     assert res[f"{names[0]}.a"][at[1]] - res[f"{names[0]}.a"][at[0]] == pytest.approx(2.0 / J0, rel=1e-6)
 
 
-def test_a_non_finite_given_rate_is_refused(monkeypatch):
+@pytest.mark.parametrize("column", ["position", "speed"])
+def test_a_non_finite_given_rate_is_refused(monkeypatch, column):
     m = chain(3)
     c = m.compile()
     real = c.initial_y
+    bad = 0 if column == "position" else int(c.iv[1])
 
     def bad_start(t, modes):
         y, yp = real(t, modes)
         yp = yp.copy()
-        yp[0] = np.nan
+        yp[bad] = np.nan
         return y, yp
     monkeypatch.setattr(c, "initial_y", bad_start)
-    with pytest.raises(rm.SimulationError, match="non-finite .* at t=0"):
+    with pytest.raises(rm.SimulationError, match="non-finite .* at t=0") as err:
         m.simulate(0.1, 0.01, solver="scipy:DOP853")
+    if column == "speed":                   # a speed's rate: the coordinate is named
+        assert f"acceleration of '{c.structure.coord_names[1]}'" in str(err.value)
 
 
 def test_deferred_accelerations_survive_pickling():

@@ -168,14 +168,11 @@ def _labels(model):
 def _measure(values, ref_values, labels):
     """The contract's measure of a run against the reference: largest scaled difference, a kind at rest in both
     left out where they agree (``richardson.clear_at_rest``, as the contract's own estimate does)."""
-    from regmech.solvers.richardson import clear_at_rest, kind_scales
-    scales = kind_scales(labels, ref_values)
-    d = np.abs(values - ref_values) / scales
-    if not np.all(np.isfinite(d)):
+    from regmech.solvers.richardson import kind_scales, largest_difference
+    value, _, i, _ = largest_difference(values, ref_values, kind_scales(labels, ref_values), labels)
+    if not math.isfinite(value):
         return math.inf, ""
-    d, _ = clear_at_rest(d, labels, values, ref_values)
-    k, i = np.unravel_index(int(np.argmax(d)), d.shape)
-    return float(d[k, i]), labels[int(i)].signal
+    return value, labels[i].signal
 
 
 def _cache_path(case, cache_dir, methods=REFERENCE_METHODS) -> Path:

@@ -197,6 +197,4 @@ class DissipatesInDamping:
 #: the extra signals of an element with a ``ThermalMass``
 THERMAL_UNITS = {**HEAT_UNITS, "heat_stored": "J", "heat_to_ambient": "J", "heat_flow_to_ambient": "W"}
 
-
-
 __all__ = ["ThermalMass", "THERMAL_UNITS", "DissipatesPower", "DissipatesInDamping", "accumulated", "heat_signals", "temperature", "HEAT_UNITS"]

@@ -123,7 +123,7 @@ import numpy as np
 
 from ..errors import AccuracyError, ParameterError, SimulationError
 from .common import check_times, output_grid, spread_rtol_floor
-from .richardson import StateLabel, clear_at_rest, kind_at_rest, kind_members, kind_scales, kind_unmoved
+from .richardson import StateLabel, kind_at_rest, kind_members, kind_scales, kind_unmoved, largest_difference
 
 #: the accuracy of ``solver="auto"`` when none is given: 1e-3 of the range of the signals of a kind
 DEFAULT_ACCURACY = 1e-3
@@ -317,19 +317,12 @@ def compare_states(va, vb, labels, grid) -> Estimate:
     """``compare_runs`` on the state matrices (``state_matrix``) of the two runs."""
     if not labels:
         return Estimate(0.0, "", "", "", float(grid[-1]))
-    scales = kind_scales(labels, vb)
-    d = np.abs(va - vb) / scales
-    if not np.all(np.isfinite(d)):
-        bad = np.argwhere(~np.isfinite(d))[0]
-        lab = labels[int(bad[1])]
-        return Estimate(math.inf, lab.signal, lab.component, lab.kind, float(grid[int(bad[0])]))
-    d, rest = clear_at_rest(d, labels, va, vb)
-    k, i = np.unravel_index(int(np.argmax(d)), d.shape)
-    if not d[k, i] > 0.0:
+    value, k, i, rest = largest_difference(va, vb, kind_scales(labels, vb), labels)
+    if not value > 0.0:
         # the runs agree everywhere (or every kind is at rest): no signal is the worst one, none is named
-        return Estimate(0.0, "", "", "", float(grid[-1]), tuple(rest))
-    lab = labels[int(i)]
-    return Estimate(float(d[k, i]), lab.signal, lab.component, lab.kind, float(grid[k]), tuple(rest))
+        return Estimate(0.0, "", "", "", float(grid[-1]), rest)
+    lab = labels[i]
+    return Estimate(value, lab.signal, lab.component, lab.kind, float(grid[k]), rest)
 
 
 # ------------------------------------------------------------------------------ events

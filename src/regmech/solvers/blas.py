@@ -33,25 +33,15 @@ import contextlib
 import ctypes
 import glob
 import os
-import threading
+
+from .forksafe import ForkSafeLock
 
 #: the name of the thread-local setter in OpenBLAS (0.3.27+; it returns the previous count)
 _SETTER = "openblas_set_num_threads_local"
 
 _lib: list = []        # [setter or None], found once per process
-_guard = threading.Lock()
+_guard = ForkSafeLock()      # renewed in a forked child (``forksafe``)
 _held = {"runs": 0, "previous": None}       # runs inside ``one_blas_thread`` now, and the count they replaced
-
-
-def _new_lock_in_child() -> None:
-    """A child made by ``fork`` while another thread held ``_guard`` would inherit it held, with no thread to
-    release it: its first call here would wait forever. The child starts with a lock of its own."""
-    global _guard
-    _guard = threading.Lock()
-
-
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_new_lock_in_child)
 
 
 def _setter():

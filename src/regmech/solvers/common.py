@@ -272,12 +272,6 @@ class Recorder:
             self.MO[k] = modes
         self.k = k + 1
 
-    @staticmethod
-    def refuse_non_finite(t):
-        """The error of a row that is not finite at ``t``."""
-        raise SimulationError(f"the solution became non-finite (NaN/inf) at t={t:.6g}; the model or the solver "
-                              f"settings are unstable there (try a tighter tolerance or a stable solver)")
-
     def arrays(self):
         """``(T, Y, YP, L, MO)`` of the rows so far; ``YP`` is None when no row has written ``y'`` (every row's
         rates are left to ``row_buffer``'s caller, which checks them when it fills them)."""
@@ -288,7 +282,10 @@ class Recorder:
             Y, YP = self.Y[:k], (self.YP[:k] if self.YP is not None else None)
         if not (np.all(np.isfinite(Y)) and (YP is None or np.all(np.isfinite(YP)))):
             bad = np.zeros(k, bool) if YP is None else ~np.all(np.isfinite(YP), axis=1)
-            self.refuse_non_finite(self.T[int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | bad)[0][0])])
+            bad = int(np.nonzero(~np.all(np.isfinite(Y), axis=1) | bad)[0][0])
+            raise SimulationError(f"the solution became non-finite (NaN/inf) at t={self.T[bad]:.6g}; the model or "
+                                  f"the solver settings are unstable there (try a tighter tolerance or a stable "
+                                  f"solver)")
         return self.T[:k].copy(), Y, YP, self.L[:k].copy(), self.MO[:k].copy()
 
 

@@ -560,12 +560,23 @@ class _Sink:
             # its y' waits with the deferred rows': one given row must not allocate y' for every row (on a chain
             # of 10,000 inertias, 17.8 MB of fresh pages a run for the starting row's rates)
             if not np.all(np.isfinite(yp)):
-                rec.refuse_non_finite(t)
+                self._refuse_rate(t, yp)
             rec.row_buffer(len(y))[:] = y
-            self._given.append((rec.k, np.array(yp if rec.yp_cols is None else np.asarray(yp)[rec.yp_cols], float)))
+            kept = yp if rec.yp_cols is None else np.asarray(yp)[rec.yp_cols]
+            self._given.append((rec.k, np.array(kept, float)))
             rec.commit(t, modes, left)
         else:
             rec.add(t, y, yp, modes, left=left)
+
+    def _refuse_rate(self, t, yp):
+        """The error of a given row whose y' is not finite, naming the coordinate where it is a speed's rate."""
+        c = self.c
+        bad = int(np.argmax(~np.isfinite(np.asarray(yp, float))))
+        at = np.flatnonzero(np.asarray(c.iv) == bad)
+        what = f"the acceleration of '{c.structure.coord_names[int(at[0])]}'" if len(at) else "a rate of the state"
+        raise SimulationError(f"{what} became non-finite (NaN/inf) at t={t:.6g} in model '{c.model.name}': a law "
+                              f"or a signal acting on it overflows there. Check that component's parameters and "
+                              f"signals, or try a tighter tolerance or 'ida'.")
 
     @property
     def takes_blocks(self) -> bool:

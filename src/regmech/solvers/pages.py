@@ -27,23 +27,11 @@ gives huge pages: that is its administrator's choice.
 
 from __future__ import annotations
 
-import os
-import threading
-
 import numpy as np
 
-_guard = threading.Lock()
+from .forksafe import ForkSafeLock
 
-
-def _new_lock_in_child() -> None:
-    """A child made by ``fork`` while another thread held ``_guard`` would inherit it held, with no thread to
-    release it: its first call here would wait forever. The child starts with a lock of its own."""
-    global _guard
-    _guard = threading.Lock()
-
-
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_new_lock_in_child)
+_guard = ForkSafeLock()      # renewed in a forked child (``forksafe``)
 
 
 def _switch():

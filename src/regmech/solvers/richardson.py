@@ -245,22 +245,32 @@ class Difference:
     at_rest: tuple = ()     # signals of kinds at rest in both runs, left out (``clear_at_rest``)
 
 
-def scaled_difference(a: GridProbe, b: GridProbe, scales, labels=None) -> Difference:
-    """The largest difference of two runs at the instants both hit, over ``scales``; with ``labels``, the
-    kinds at rest in both runs are left out where the runs agree (``clear_at_rest``)."""
-    common = sorted(set(a.samples) & set(b.samples))
-    if not common:
-        return Difference(math.inf, 0, math.nan, 0)
-    va = np.array([a.samples[t] for t in common])
-    vb = np.array([b.samples[t] for t in common])
+def largest_difference(va: np.ndarray, vb: np.ndarray, scales, labels=None) -> tuple[float, int, int, tuple]:
+    """``(value, instant, state, at_rest)``: the largest ``|va - vb| / scales`` of two runs' state matrices (one
+    row per instant, one column per state) and where it is; a non-finite difference is ``inf`` at its first
+    entry. With ``labels``, the kinds at rest in both runs are left out where the runs agree
+    (``clear_at_rest``: ``at_rest`` names them). A value of 0 (the runs agree everywhere) has no worst state:
+    the callers name none. The one measure of the contract's pairs (``accuracy.compare_states``) and of the
+    Richardson companions (``scaled_difference``)."""
     d = np.abs(va - vb) / scales
     if not np.all(np.isfinite(d)):
-        return Difference(math.inf, 0, math.nan, len(common))
+        k, i = np.argwhere(~np.isfinite(d))[0]
+        return math.inf, int(k), int(i), ()
     rest: list = []
     if labels:
         d, rest = clear_at_rest(d, labels, va, vb)
     k, i = np.unravel_index(int(np.argmax(d)), d.shape)
-    return Difference(float(d[k, i]), int(i), float(common[k]), len(common), tuple(rest))
+    return float(d[k, i]), int(k), int(i), tuple(rest)
+
+
+def scaled_difference(a: GridProbe, b: GridProbe, scales, labels=None) -> Difference:
+    """The largest difference of two runs at the instants both hit, over ``scales`` (``largest_difference``)."""
+    common = sorted(set(a.samples) & set(b.samples))
+    if not common:
+        return Difference(math.inf, 0, math.nan, 0)
+    value, k, i, rest = largest_difference(np.array([a.samples[t] for t in common]),
+                                           np.array([b.samples[t] for t in common]), scales, labels)
+    return Difference(value, i, float(common[k]), len(common), rest)
 
 
 # -------------------------------------------------------------------- the runs
