@@ -23,11 +23,13 @@ import numpy as np
 from numba import njit
 
 #: signal kinds
-CONSTANT, SINE, STEP, RAMP = 0, 1, 2, 3
+CONSTANT, SINE, STEP, RAMP, PULSE, TABLE = 0, 1, 2, 3, 4, 5
 #: parameters per signal
 N_PAR = 5
-#: signal classes the kernels evaluate
-SUPPORTED = ("Constant", "Sine", "Step", "Ramp")
+#: signal classes every compiled kernel evaluates (``signal_value``)
+SUPPORTED = ("Constant", "Sine", "Step", "Ramp", "Pulse")
+#: ... and those the native IDA kernels evaluate from a pool of points beside the parameters (``signal_at``)
+SUPPORTED_POOLED = SUPPORTED + ("Table",)
 
 
 @njit(cache=True, inline="always")
@@ -48,15 +50,66 @@ def signal_value(kind, p, t, left):
         if t >= t0 + p[2]:
             return p[0] + p[1]
         return p[0] + p[1] * (t - t0) / p[2]
+    if kind == PULSE:            # p = offset, amplitude, width [%], period, start_time
+        if t < p[4] or (left and t == p[4]):
+            return p[0]
+        on_time = p[2] / 100.0 * p[3]
+        k = math.floor((t - p[4]) / p[3])
+        for kk in (k - 1, k, k + 1):
+            t0 = p[4] + kk * p[3]
+            if kk >= 0 and ((t0 < t <= t0 + on_time) if left else (t0 <= t < t0 + on_time)):
+                return p[0] + p[1]
+        return p[0]
     return p[0]                  # CONSTANT
 
 
-def signal_entry(s):
-    """(kind, parameters) of a signal the kernels evaluate, or None."""
+@njit(cache=True, inline="always")
+def table_value(arr, base, n, t, left):
+    """``Table.value``: the ``n`` times at ``arr[base:base + n]``, the values after them; piece k holds
+    ``[t_k, t_{k+1})`` (left limits ``(t_k, t_{k+1}]``), constant outside, a repeated time a jump."""
+    lo, hi = 0, n                # k + 1 = the number of times < t (left) or <= t
+    while lo < hi:
+        mid = (lo + hi) // 2
+        tm = arr[base + mid]
+        if tm < t or (not left and tm == t):
+            lo = mid + 1
+        else:
+            hi = mid
+    k = lo - 1
+    v = base + n
+    if k < 0:
+        return arr[v]
+    if k >= n - 1:
+        return arr[v + n - 1]
+    t0, t1 = arr[base + k], arr[base + k + 1]
+    if t1 == t0:
+        return arr[v + k + 1]
+    return arr[v + k] + (arr[v + k + 1] - arr[v + k]) * (t - t0) / (t1 - t0)
+
+
+@njit(cache=True, inline="always")
+def signal_at(kind, arr, off, t, left):
+    """The value of the signal whose parameters sit at ``arr[off:off + N_PAR]``; a ``TABLE``'s are the index of
+    its points in ``arr`` and their count (``pooled_entries``)."""
+    if kind == TABLE:
+        return table_value(arr, int(arr[off]), int(arr[off + 1]), t, left)
+    return signal_value(kind, arr[off:off + N_PAR], t, left)
+
+
+def signal_entry(s, pooled=False):
+    """(kind, parameters) of a signal the kernels evaluate, or None. With ``pooled`` a ``Table`` too: its
+    parameters are ``[-1, n]`` and its points (times, then values) a third item, placed by
+    ``pooled_entries``."""
     name = type(s).__name__
-    if name not in SUPPORTED or type(s).__module__ != "regmech.signals":
+    if name not in (SUPPORTED_POOLED if pooled else SUPPORTED) or type(s).__module__ != "regmech.signals":
         return None
     p = np.zeros(N_PAR)
+    if name == "Table":
+        p[:2] = -1.0, len(s.points)
+        return TABLE, p, np.concatenate([s.points[:, 0], s.points[:, 1]])
+    if name == "Pulse":
+        p[:5] = s.offset, s.amplitude, s.width, s.period, s.start_time
+        return PULSE, p
     if name == "Sine":
         p[:5] = s.offset, s.amplitude, s.freq_hz, s.phase, s.start_time
         return SINE, p
@@ -70,36 +123,58 @@ def signal_entry(s):
     return CONSTANT, p
 
 
-def signal_table(plan):
+def signal_table(plan, pooled=False):
     """(kinds, slots, parameters) of every signal in the input slots of ``plan``
     (``EvaluationPlan.input_slots``: the value of signal i of bank j of a group at ``start + j n + i``), or
-    a string naming the first one the kernels cannot evaluate. Kept with the plan (read-only arrays): the
+    a string naming the first one the kernels cannot evaluate. With ``pooled`` (the native IDA kernels) tables
+    too, as a fourth item: their points, to be placed after the parameters (``pooled_entries``; a table's first
+    parameter is then relative to the parameters' start). Kept with the plan (read-only arrays): the
     library's signals are fixed when made (``regmech.signals.Signal``), and a new one recompiles the model."""
-    kept = plan.__dict__.get("_native_signal_table")
+    key = "_native_signal_table_pooled" if pooled else "_native_signal_table"
+    kept = plan.__dict__.get(key)
     if kept is None:
-        kept = plan._native_signal_table = _signal_table(plan)
+        kept = _signal_table(plan, pooled)
+        setattr(plan, key, kept)
     return kept
 
 
-def _signal_table(plan):
+def _signal_table(plan, pooled):
     """``signal_table`` computed."""
-    kinds, slots, pars = [], [], []
+    entries, slots = [], []
     for g, start, _, _ in plan.input_slots:
         for j, sigs in enumerate(g.signals):
             for i, s in enumerate(sigs):
-                entry = signal_entry(s)
+                entry = signal_entry(s, pooled)
                 if entry is None:
+                    names = SUPPORTED_POOLED if pooled else SUPPORTED
                     return (f"{type(g.devices[i]).__name__} '{g.devices[i].name}' has a {type(s).__name__} signal "
-                            f"(the native path evaluates {', '.join(SUPPORTED)})")
-                kinds.append(entry[0])
+                            f"(the compiled kernels evaluate {', '.join(names)})")
+                entries.append(entry)
                 slots.append(start + j * g.n + i)
-                pars.append(entry[1])
-    table = (np.array(kinds, np.int64), np.array(slots, np.int64), np.concatenate(pars) if pars else np.zeros(0))
+    kinds, pars, pool = pooled_entries(entries, 0)
+    table = (kinds, np.array(slots, np.int64), pars) + ((pool,) if pooled else ())
     for a in table:
         a.flags.writeable = False       # shared by the native IDA layouts and the ODE form
     return table
 
 
+def pooled_entries(entries, base):
+    """``(kinds, parameters, pool)`` of ``signal_entry(..., pooled=True)`` results placed in an array whose
+    parameters start at ``base`` and whose pool follows them: each table's first parameter becomes the index
+    of its points."""
+    kinds = np.array([e[0] for e in entries], np.int64)
+    pars = np.concatenate([e[1] for e in entries]) if entries else np.zeros(0)
+    pool, pos = [], base + len(pars)
+    for i, e in enumerate(entries):
+        if e[0] == TABLE:
+            pars[N_PAR * i] = pos
+            pool.append(e[2])
+            pos += len(e[2])
+    return kinds, pars, (np.concatenate(pool) if pool else np.zeros(0))
+
+
 def source_hash() -> str:
-    """The first 16 hex digits of the SHA-256 of ``signal_value``'s source (module docstring)."""
-    return hashlib.sha256(inspect.getsource(signal_value.py_func).encode()).hexdigest()[:16]
+    """The first 16 hex digits of the SHA-256 of the source of the compiled signal formulas (module
+    docstring)."""
+    text = "".join(inspect.getsource(f.py_func) for f in (signal_value, table_value, signal_at))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]

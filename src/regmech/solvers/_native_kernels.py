@@ -33,10 +33,10 @@ from numba.extending import intrinsic
 
 # signal kinds and their formulas, shared with the ODE form's compiled right-hand side
 from ..compile._native_signals import CONSTANT, N_PAR, RAMP, SINE, STEP      # noqa: E402,F401
-from ..compile._native_signals import signal_value as _signal                 # noqa: E402
+from ..compile._native_signals import signal_at as _signal_at                 # noqa: E402
 #: ``_native_signals.source_hash()`` of the signal formulas compiled in here (a test checks it: a change there must
 #: edit this file, or numba's cache of this file's kernels keeps the old formulas)
-SIGNALS_SOURCE = "0d20609da5c999f8"
+SIGNALS_SOURCE = "1aa0d2b3db6801a2"
 # a friction device's first event function in the segment's modes (``hybrid.events``)
 EV_SLIDING, EV_STUCK, EV_CONSTANT = 0, 1, 2
 # the mode codes of ``regmech.modes`` (STUCK 0, FORWARD 1, BACKWARD -1; FREE and HELD carry no torque)
@@ -79,6 +79,19 @@ def _call_ida_solve(typingctx, fn, mem, tout, tret, yy, yp, itask):
                                 builder.inttoptr(args[4], vp), builder.inttoptr(args[5], vp),
                                 builder.trunc(args[6], ir.IntType(32))])
     return types.int32(fn, mem, tout, tret, yy, yp, itask), codegen
+
+
+@intrinsic
+def _call_kernel(typingctx, fn, a, n, t, out):
+    """A class kernel ``void f(double *a, int64 n, double t, double *out)`` (``compile.codegen``) through its
+    address ``fn``; ``a`` and ``out`` are addresses given as integers."""
+    def codegen(context, builder, signature, args):
+        dp = ir.DoubleType().as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [dp, ir.IntType(64), ir.DoubleType(), dp])
+        f = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(f, [builder.inttoptr(args[1], dp), args[2], args[3], builder.inttoptr(args[4], dp)])
+        return context.get_dummy_value()
+    return types.none(fn, a, n, t, out), codegen
 
 
 @intrinsic
@@ -137,6 +150,10 @@ def _call_p_d_p_p(typingctx, fn, mem, a, b, c):
 
 
 CLOCK_MONOTONIC = 1      # Linux: the clock of Python's time.monotonic()
+#: entries of the user data: ``[idata, fdata, hi, hf, ctl, clock_gettime, gi, gf]``
+N_UD = 8
+#: header lengths of the nonlinear groups' tables ``gi`` (int64) and ``gf`` (float64), ``ida_native.GroupTables``
+GI_HEAD, GF_HEAD, G_REC = 13, 6, 8
 
 
 @njit(cache=True, inline="always")
@@ -162,6 +179,82 @@ def _second_pointer(addr):
     return carray(_i64p(content + 8), (1,))[0]
 
 
+@njit(cache=True, inline="always")
+def _group_tables(ud):
+    gh = carray(_i64p(ud[6]), (GI_HEAD,))
+    gi = carray(_i64p(ud[6]), (gh[GI_HEAD - 1],))
+    fh = carray(_f64p(ud[7]), (GF_HEAD,))
+    gf = carray(_f64p(ud[7]), (int(fh[GF_HEAD - 1]),))
+    return gh, gi, fh, gf
+
+
+@njit(cache=True)
+def _groups(ud, fdata, buf, t, left, weights):
+    """The nonlinear device classes (``compile.codegen`` kernels): their signal inputs at t, their arguments
+    ``[e; de; z] = E y + e0`` from the unknowns at ``fdata[buf:buf + N]`` (compiled order), then per group its
+    ``res`` kernel into its output slots of ``buf`` or, with ``weights``, its ``jac`` kernel into ``w``.
+
+    ``gi``: ``[n_groups, n_erows, off_ptr, off_idx, off_dest, off_grp, n_gsig, off_gkind, off_gdest, n_w,
+    off_wptr, off_widx, length]``, a record per group ``[n, n_args, res, jac, args, out_slot, w,
+    n_jac]``; ``gf``: ``[off_edata, off_e0, off_gpar, off_wdata, off_w, length]``."""
+    gh, gi, fh, gf = _group_tables(ud)
+    for s in range(gh[6]):
+        gf[gi[gh[8] + s]] = _signal_at(gi[gh[7] + s], gf, int(fh[2]) + N_PAR * s, t, left)
+    ptr, idx, dest = gh[2], gh[3], gh[4]
+    edata, e0 = int(fh[0]), int(fh[1])
+    for r in range(gh[1]):
+        acc = gf[e0 + r]
+        for q in range(gi[ptr + r], gi[ptr + r + 1]):
+            acc += gf[edata + q] * fdata[buf + gi[idx + q]]
+        gf[gi[dest + r]] = acc
+    for g in range(gh[0]):
+        rec = gh[5] + G_REC * g
+        n = gi[rec]
+        a = ud[7] + 8 * gi[rec + 4]
+        if weights:
+            if gi[rec + 7] > 0:
+                _call_kernel(gi[rec + 3], a, n, t, ud[7] + 8 * (int(fh[4]) + gi[rec + 6]))
+        else:
+            _call_kernel(gi[rec + 2], a, n, t, ud[1] + 8 * (buf + gi[rec + 5]))
+
+
+@njit(cache=True, inline="always")
+def _fill_unknowns(ud, yy, yp):
+    """y and y' (solver order) into ``buf`` (compiled order); returns ``(fdata, buf, N)``."""
+    ih = carray(_i64p(ud[0]), (11,))
+    idata = carray(_i64p(ud[0]), (ih[10],))
+    fh = carray(_f64p(ud[1]), (7,))
+    fdata = carray(_f64p(ud[1]), (int(fh[6]),))
+    N = ih[0]
+    y = carray(_f64p(_second_pointer(_address(yy))), (N,))
+    ydot = carray(_f64p(_second_pointer(_address(yp))), (N,))
+    buf, perm = int(fh[3]), ih[6]
+    for i in range(N):
+        k = idata[perm + i]
+        fdata[buf + k] = y[i]
+        fdata[buf + N + k] = ydot[i]
+    return fdata, buf, N
+
+
+@njit(cache=True, inline="always")
+def _variable_entries(ud, t, yy, yp):
+    """Entry q of the Jacobian's nonlinear part ``W w`` is ``acc[q]``; computed into the groups' ``w`` first
+    (their ``jac`` kernels at (t, y)). Returns ``(gh, gi, fh, gf)``; nothing when the model has no groups."""
+    fdata, buf, N = _fill_unknowns(ud, yy, yp)
+    _groups(ud, fdata, buf, t, t >= fdata[0], True)
+    return _group_tables(ud)
+
+
+@njit(cache=True, inline="always")
+def _w_entry(gh, gi, fh, gf, q):
+    """``(W w)[q]``: row q of the CSR matrix W (``gi[off_wptr]``...) times the groups' weights ``w``."""
+    acc = 0.0
+    wdata, w = int(fh[3]), int(fh[4])
+    for p in range(gi[gh[10] + q], gi[gh[10] + q + 1]):
+        acc += gf[wdata + p] * gf[w + gi[gh[11] + p]]
+    return acc
+
+
 _RES_SIG = types.int32(types.float64, types.voidptr, types.voidptr, types.voidptr, types.voidptr)
 
 
@@ -185,7 +278,9 @@ def _linear_rows(t, yy, yp, rr, ud):
         fdata[buf + N + k] = ydot[i]
     left = t >= fdata[0]
     for s in range(n_sig):
-        fdata[buf + idata[slot + s]] = _signal(idata[kind + s], fdata[par + N_PAR * s: par + N_PAR * (s + 1)], t, left)
+        fdata[buf + idata[slot + s]] = _signal_at(idata[kind + s], fdata, par + N_PAR * s, t, left)
+    if ud[6] != 0:
+        _groups(ud, fdata, buf, t, left, False)
     for i in range(N):
         row = idata[perm + i]
         acc = 0.0
@@ -197,7 +292,7 @@ def _linear_rows(t, yy, yp, rr, ud):
 
 @cfunc(_RES_SIG, cache=True)
 def residual(t, yy, yp, rr, user_data):
-    ud = carray(_i64p(_address(user_data)), (6,))
+    ud = carray(_i64p(_address(user_data)), (N_UD,))
     if _past_deadline(ud):
         return -1
     _linear_rows(t, yy, yp, rr, ud)
@@ -216,15 +311,14 @@ def _friction_tables(ud):
 @njit(cache=True, inline="always")
 def _normal_force(hh, hi, fh, hf, j, t, left):
     """``fn_scale_j * u_j(t)``: device j's normal force (its law: ``FrictionDevice.linear_law``)."""
-    par = int(fh[2]) + N_PAR * j
-    return hf[int(fh[3]) + j] * _signal(hi[hh[8] + j], hf[par: par + N_PAR], t, left)
+    return hf[int(fh[3]) + j] * _signal_at(hi[hh[8] + j], hf, int(fh[2]) + N_PAR * j, t, left)
 
 
 @cfunc(_RES_SIG, cache=True)
 def residual_friction(t, yy, yp, rr, user_data):
     """The linear rows, then each friction row in the segment's mode (``compile.friction_rows``):
     stuck ``G_f[j] a = 0``; sliding ``lam_j - mode k_j max(fn_j(t), 0) = 0``; free or held ``lam_j = 0``."""
-    ud = carray(_i64p(_address(user_data)), (6,))
+    ud = carray(_i64p(_address(user_data)), (N_UD,))
     if _past_deadline(ud):
         return -1
     fdata, buf, left = _linear_rows(t, yy, yp, rr, ud)
@@ -255,7 +349,7 @@ def events(t, yy, yp, gout, user_data):
     """The ``2 mf`` event functions of ``hybrid.events`` (``_event_values_small``) in the segment's modes:
     per device its first function (sliding ``mode w_rel``, stuck ``tau0_max - |lam|``, else 1; a relief
     event ``ms lam_holder + tol`` in its place) and its engagement (``fn`` engaged, ``-fn`` not)."""
-    ud = carray(_i64p(_address(user_data)), (6,))
+    ud = carray(_i64p(_address(user_data)), (N_UD,))
     ih = carray(_i64p(ud[0]), (11,))
     fdata = carray(_f64p(ud[1]), (1,))
     hh, hi, fh, hf = _friction_tables(ud)
@@ -296,8 +390,9 @@ _JAC_SIG = types.int32(types.float64, types.float64, types.voidptr, types.voidpt
 
 @cfunc(_JAC_SIG, cache=True)
 def jacobian_dense(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
-    """``dF/dy + cj dF/dy'`` of the linear residual: constant entries ``jc + cj jcj`` on the pattern."""
-    ud = carray(_i64p(_address(user_data)), (2,))
+    """``dF/dy + cj dF/dy'``: entries ``jc + cj jcj`` on the pattern (constant in a segment's modes), plus the
+    nonlinear device classes' part ``W w(t, y)`` (``_variable_entries``) where the model has them."""
+    ud = carray(_i64p(_address(user_data)), (N_UD,))
     ih = carray(_i64p(ud[0]), (11,))
     idata = carray(_i64p(ud[0]), (ih[10],))
     fh = carray(_f64p(ud[1]), (7,))
@@ -307,6 +402,11 @@ def jacobian_dense(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
     J = carray(_f64p(_second_pointer(_address(jac))), (N * N,))
     for k in range(N * N):
         J[k] = 0.0
+    if ud[6] != 0:
+        gh, gi, gfh, gf = _variable_entries(ud, t, yy, yp)
+        for q in range(n_jac):
+            J[idata[jk + q]] = fdata[jcj + q] * cj + fdata[jc + q] + _w_entry(gh, gi, gfh, gf, q)
+        return 0
     for q in range(n_jac):
         J[idata[jk + q]] = fdata[jcj + q] * cj + fdata[jc + q]
     return 0
@@ -314,10 +414,10 @@ def jacobian_dense(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
 
 @cfunc(_JAC_SIG, cache=True)
 def jacobian_band(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
-    """``dF/dy + cj dF/dy'`` of the linear residual into a band SUNMatrix: the constant entries ``jc + cj jcj``
-    at their places in the band storage, ``idata[jk + q]`` (``ida_native._band_places``); the storage's length
-    (``ldata``) and the byte offset of its data pointer in the matrix's content are header slots 11 and 12."""
-    ud = carray(_i64p(_address(user_data)), (2,))
+    """``dF/dy + cj dF/dy'`` into a band SUNMatrix: the entries of ``jacobian_dense`` at their places in the band
+    storage, ``idata[jk + q]`` (``ida_native._band_places``); the storage's length (``ldata``) and the byte offset
+    of its data pointer in the matrix's content are header slots 11 and 12."""
+    ud = carray(_i64p(_address(user_data)), (N_UD,))
     ih = carray(_i64p(ud[0]), (13,))
     idata = carray(_i64p(ud[0]), (ih[10],))
     fh = carray(_f64p(ud[1]), (7,))
@@ -328,6 +428,11 @@ def jacobian_band(t, cj, yy, yp, rr, jac, user_data, tmp1, tmp2, tmp3):
     J = carray(_f64p(carray(_i64p(content + offset), (1,))[0]), (ldata,))
     for k in range(ldata):
         J[k] = 0.0
+    if ud[6] != 0:
+        gh, gi, gfh, gf = _variable_entries(ud, t, yy, yp)
+        for q in range(n_jac):
+            J[idata[jk + q]] = fdata[jcj + q] * cj + fdata[jc + q] + _w_entry(gh, gi, gfh, gf, q)
+        return 0
     for q in range(n_jac):
         J[idata[jk + q]] = fdata[jcj + q] * cj + fdata[jc + q]
     return 0

@@ -200,7 +200,7 @@ def friction_laws(fr):
 
 def _friction_laws(fr):
     """``friction_laws`` computed."""
-    from ..compile._native_signals import SUPPORTED, signal_entry
+    from ..compile._native_signals import SUPPORTED_POOLED, signal_entry
     laws = []
     for j, dev in enumerate(fr.devices):
         what = f"{type(dev).__name__} '{dev.name}'"
@@ -215,13 +215,13 @@ def _friction_laws(fr):
         if law is None:
             return f"{what} has a speed-dependent or user-defined friction law"
         sig, fn_scale, k, peak = law
-        entry = signal_entry(sig)
+        entry = signal_entry(sig, pooled=True)
         if entry is None:
             return (f"{what} has a {type(sig).__name__} normal force (the native path evaluates "
-                    f"{', '.join(SUPPORTED)})")
+                    f"{', '.join(SUPPORTED_POOLED)})")
         if not all(np.isfinite(x) for x in (fn_scale, k, peak)):
             return f"{what} has non-finite friction parameters"
-        laws.append((entry[0], entry[1], float(fn_scale), float(k), float(peak)))
+        laws.append((entry, float(fn_scale), float(k), float(peak)))
     return laws
 
 
@@ -244,8 +244,6 @@ def _eligible(c, linsolver):
     plan = c._plan
     if getattr(c, "n_surf", 0):
         return "switching surfaces of piecewise laws (contacts located as events in Python)"
-    if plan.nonlinear:
-        return f"nonlinear device classes ({', '.join(sorted({g.tpl.cls.__name__ for g in plan.nonlinear}))})"
     if plan.offset_slots:
         return f"offsets not linear in their signals ({', '.join(g.tpl.cls.__name__ for g, _ in plan.offset_slots)})"
     if plan.pos_refs or plan.spd_refs:
@@ -256,9 +254,13 @@ def _eligible(c, linsolver):
     if isinstance(lib, str):
         return lib
     from ..compile._native_signals import signal_table
-    table = signal_table(plan)
+    table = signal_table(plan, pooled=True)
     if isinstance(table, str):
         return table
+    if plan.nonlinear:
+        groups = group_tables(c)
+        if isinstance(groups, str):
+            return groups
     if c.mf:
         laws = friction_laws(c.friction)
         if isinstance(laws, str):
@@ -330,7 +332,8 @@ def _layout(c, linsolver, order, lband=0, uband=0):
     plan = c._plan
     N = c.N
     from ..compile._native_signals import signal_table
-    kinds, slots, pars = signal_table(plan)
+    kinds, slots, pars, pool = signal_table(plan, pooled=True)
+    pars = np.array(pars)
     L = sp.csr_matrix(plan.L) if isinstance(plan.L, np.ndarray) else plan.L.tocsr(copy=True)
     L.sum_duplicates()
     perm = np.arange(N) if order.perm is None else np.asarray(order.perm, np.int64)
@@ -339,8 +342,7 @@ def _layout(c, linsolver, order, lband=0, uband=0):
     if linsolver in ("dense", "band"):
         # constant iteration-matrix entries (an eligible model has no nonlinear weights); entry q of the Jacobian
         # data sits at (jac.rows[q], jac.cols[q]), each once: dense column-major, band in its storage
-        c.jacobian_data(0.0, np.zeros(N), np.zeros(N), 0.0, c.modes0)      # builds the Jacobian plan
-        jp = c._jac_plan
+        jp = jacobian_plan(c)
         if linsolver == "dense":
             jk = np.asarray(c.jac.cols, np.int64) * N + np.asarray(c.jac.rows, np.int64)
         else:
@@ -359,14 +361,23 @@ def _layout(c, linsolver, order, lband=0, uband=0):
                                      np.int64)] + [np.asarray(a, np.int64) for a in parts_i])
     buf = np.zeros(plan.width)
     buf[plan.one] = 1.0
-    parts_f = [L.data, pars, buf, jc, jcj]
+    parts_f = [L.data, pars, buf, jc, jcj, pool]
     offs_f, pos = [], 7
     for a in parts_f:
         offs_f.append(pos)
         pos += len(a)
-    # header: t_right, then the offsets of data, par, buf, jc, jcj, then the length
-    fdata = np.concatenate([np.array([np.inf] + offs_f + [pos], float)] + [np.asarray(a, float) for a in parts_f])
+    _place_pool(pars, kinds, offs_f[5] - len(pars))
+    # header: t_right, then the offsets of data, par, buf, jc, jcj, then the length (the tables' points last)
+    fdata = np.concatenate([np.array([np.inf] + offs_f[:5] + [pos], float)] + [np.asarray(a, float) for a in parts_f])
     return idata, fdata
+
+
+def _place_pool(pars, kinds, shift):
+    """Move each table's first parameter (the index of its points, ``_native_signals.pooled_entries``) by
+    ``shift``: its points then sit where the array that holds the parameters placed its pool."""
+    from ..compile._native_signals import N_PAR, TABLE
+    for i in np.nonzero(np.asarray(kinds) == TABLE)[0]:
+        pars[N_PAR * i] += shift
 
 
 class FrictionTables:
@@ -395,7 +406,9 @@ class FrictionTables:
             wptr.append(len(widx))
         lam = np.asarray(c.ilam[fr.offset:fr.offset + mf], np.int64)
         self.lam_compiled = lam
-        parts_i = [inv[c.r_fric], sptr, sidx, wptr, widx, lam, inv[lam], [law[0] for law in laws],
+        from ..compile._native_signals import pooled_entries
+        kinds, sig_par, pool = pooled_entries([law[0] for law in laws], 0)
+        parts_i = [inv[c.r_fric], sptr, sidx, wptr, widx, lam, inv[lam], kinds,
                    np.zeros(mf), np.zeros(mf), np.zeros(mf), np.full(mf, -1)]
         offs, pos = [], 14
         for a in parts_i:
@@ -404,13 +417,15 @@ class FrictionTables:
         self.hi = np.concatenate([np.array([mf] + offs + [pos], np.int64)] +
                                  [np.asarray(a, np.int64) for a in parts_i])
         self._mode, self._evkind, self._engaged, self._relief = (slice(offs[k], offs[k] + mf) for k in (8, 9, 10, 11))
-        parts_f = [scoef, wcoef, np.concatenate([law[1] for law in laws]), [law[2] for law in laws],
-                   [law[3] for law in laws], [law[4] for law in laws], np.zeros(mf), np.zeros(mf)]
+        parts_f = [scoef, wcoef, sig_par, [law[1] for law in laws], [law[2] for law in laws],
+                   [law[3] for law in laws], np.zeros(mf), np.zeros(mf), pool]
         offs, pos = [], 9
         for a in parts_f:
             offs.append(pos)
             pos += len(a)
-        self.hf = np.concatenate([np.array(offs + [pos], float)] + [np.asarray(a, float) for a in parts_f])
+        # a table's points follow the last part: its first parameter, relative to the parameters' start, moved
+        _place_pool(sig_par, kinds, offs[8] - len(sig_par))
+        self.hf = np.concatenate([np.array(offs[:8] + [pos], float)] + [np.asarray(a, float) for a in parts_f])
         self._ms, self._tol = slice(offs[6], offs[6] + mf), slice(offs[7], offs[7] + mf)
         self._inv = inv
 
@@ -434,20 +449,120 @@ class FrictionTables:
             hf[t0 + j] = tol
 
 
+def jacobian_plan(c):
+    """The compiled system's Jacobian plan (``compile.evaluation.JacobianPlan``), built without evaluating it."""
+    from ..compile.evaluation import JacobianPlan
+    jp = c.__dict__.get("_jac_plan")
+    if jp is None or jp.jac is not c.jac:       # the pattern grows when friction rows are added
+        jp = c._jac_plan = JacobianPlan(c.jac, c._plan, c.nw_kernel)
+    return jp
+
+
 def friction_jacobian(c, modes):
-    """``(jc, jcj)``: the constant and the ``cj`` part of the dense Jacobian entries in ``modes`` (a model whose
-    friction laws are ``linear_law``s: the Jacobian depends on the modes only), cached per mode set."""
+    """``(jc, jcj)``: the constant and the ``cj`` part of the Jacobian entries in ``modes`` apart from the
+    nonlinear device classes' weights, which the kernels add at every call (a model whose friction laws are
+    ``linear_law``s: the rest depends on the modes only), cached per mode set."""
     cache = c.__dict__.setdefault("_native_friction_jac", {})
     key = np.asarray(modes, np.int64).tobytes()
     hit = cache.get(key)
     if hit is None:
+        jp = jacobian_plan(c)
         z = np.zeros(c.N)
-        j0 = np.array(c.jacobian_data(0.0, z, z, 0.0, modes), float)
-        j1 = np.array(c.jacobian_data(0.0, z, z, 1.0, modes), float) - j0
+
+        def entries(cj):
+            out = jp.cjv * cj + jp.const
+            if jp.n_extra:
+                w = np.zeros(jp.width)
+                w[jp.n_nonlinear:] = c.friction.weights(0.0, z[c._sv], cj, modes, z[c._slam], y=z)[:jp.n_extra]
+                out = out + jp.W @ w
+            return np.asarray(out, float)
+        j0 = entries(0.0)
+        hit = (j0, entries(1.0) - j0)
         if len(cache) > 256:
             cache.clear()
-        hit = cache[key] = (j0, j1)
+        cache[key] = hit
     return hit
+
+
+def group_tables(c):
+    """The kernels' tables ``(gi, gf)`` of the compiled system's nonlinear device classes (``_native_kernels._groups``),
+    or a string naming the first device whose law or input the kernels cannot evaluate. Kept with the compiled
+    system (for its Jacobian pattern)."""
+    kept = c.__dict__.get("_native_groups")
+    if kept is None or kept[0] is not c.jac:
+        kept = c._native_groups = (c.jac, _group_tables(c))
+    return kept[1]
+
+
+def _group_tables(c):
+    """``group_tables`` computed."""
+    import scipy.sparse as sp
+    from ..compile import codegen
+    from ..compile._native_signals import N_PAR, SUPPORTED_POOLED, pooled_entries, signal_entry
+    K = libraries().K
+    plan, jp = c._plan, jacobian_plan(c)
+    recs, entries, dest_rel, regions = [], [], [], []
+    start = w_pos = 0
+    for (g, r0, nb), (_, slot) in zip(plan.nl_args, plan.nl_out):
+        dev = g.devices[0]
+        what = f"{type(dev).__name__} '{dev.name}'"
+        ker = codegen.class_kernels(g.tpl)
+        if isinstance(ker, str):
+            return f"{what}: {ker}"
+        n, n_p = g.n, len(g.param_values)
+        if ker.n_args != nb + n_p + len(g.signals):
+            return f"{what}: its compiled law reads {ker.n_args} arguments, its devices give {nb + n_p + len(g.signals)}"
+        for j, sigs in enumerate(g.signals):
+            for i, sig in enumerate(sigs):
+                entry = signal_entry(sig, pooled=True)
+                if entry is None:
+                    return (f"{type(g.devices[i]).__name__} '{g.devices[i].name}' has a {type(sig).__name__} "
+                            f"input (the native path evaluates {', '.join(SUPPORTED_POOLED)})")
+                entries.append(entry)
+                dest_rel.append(start + (nb + n_p + j) * n + i)
+        regions.append((g, r0, nb, start))
+        recs.append([n, ker.n_args, ker.res, ker.jac, start, slot, w_pos, ker.n_jac])
+        start += ker.n_args * n
+        w_pos += ker.n_jac * n
+    if w_pos != jp.n_nonlinear:
+        return f"the nonlinear weights ({w_pos}) do not match the Jacobian's ({jp.n_nonlinear})"
+    E = sp.csr_matrix(plan.E)
+    E.sum_duplicates()
+    W = sp.csr_matrix(np.zeros((c.jac.nnz, 0)) if jp.W is None else jp.W)[:, :jp.n_nonlinear].tocsr()
+    W.sum_duplicates()
+    kinds, gpar, pool = pooled_entries(entries, 0)
+    # gf: header, E data, e0, the groups' argument blocks, w, signal parameters, W data, the tables' points
+    args = np.zeros(start)
+    for g, r0, nb, a0 in regions:
+        for p, vals in enumerate(g.param_values):
+            args[a0 + (nb + p) * g.n: a0 + (nb + p + 1) * g.n] = vals
+    parts_f = [E.data, plan.e0, args, np.zeros(w_pos), gpar, W.data, pool]
+    offs_f, pos = [], K.GF_HEAD
+    for a in parts_f:
+        offs_f.append(pos)
+        pos += len(a)
+    _place_pool(gpar, kinds, offs_f[6] - len(gpar))
+    parts_f[4] = gpar
+    a_start = offs_f[2]
+    dest = np.zeros(E.shape[0], np.int64)
+    for g, r0, nb, a0 in regions:
+        dest[r0: r0 + nb * g.n] = a_start + a0 + np.arange(nb * g.n)
+    for rec in recs:
+        rec[4] += a_start
+    fh = [offs_f[0], offs_f[1], offs_f[4], offs_f[5], offs_f[3], pos]
+    gf = np.concatenate([np.array(fh, float)] + [np.asarray(a, float) for a in parts_f])
+    parts_i = [E.indptr, E.indices, dest, np.array(recs, np.int64).ravel(), kinds,
+               np.asarray(dest_rel, np.int64) + a_start, W.indptr, W.indices]
+    offs_i, pos = [], K.GI_HEAD
+    for a in parts_i:
+        offs_i.append(pos)
+        pos += len(a)
+    head = [len(recs), E.shape[0], offs_i[0], offs_i[1], offs_i[2], offs_i[3], len(entries), offs_i[4], offs_i[5],
+            w_pos, offs_i[6], offs_i[7], pos]
+    gi = np.concatenate([np.array(head, np.int64)] + [np.asarray(a, np.int64) for a in parts_i])
+    for a in (gi, gf):
+        a.flags.writeable = False          # each solver works on its own copy of gf
+    return gi, gf
 
 
 class NativeIDA:
@@ -482,8 +597,13 @@ class NativeIDA:
         if c.mf:
             self.friction = FrictionTables(c, order, friction_laws(c.friction))
             hi_ptr, hf_ptr = self.friction.hi.ctypes.data, self.friction.hf.ctypes.data
+        gi_ptr = gf_ptr = 0
+        if c._plan.nonlinear:
+            gi, gf = group_tables(c)
+            self.gi, self.gf = gi, gf.copy()          # the kernels write the arguments and weights into gf
+            gi_ptr, gf_ptr = self.gi.ctypes.data, self.gf.ctypes.data
         self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data, hi_ptr, hf_ptr, self.ctl.ctypes.data,
-                              lib.clock_address], np.int64)
+                              lib.clock_address, gi_ptr, gf_ptr], np.int64)
         if c.mf:
             self._rootdir = np.full(2 * c.mf, -1, np.int32)
             self.rootsfound = np.zeros(2 * c.mf, np.int32)
