@@ -48,7 +48,7 @@ def test_the_choice_and_its_reason_are_recorded():
     assert res.stats.solver in rm.solvers.SOLVERS and x["auto_reason"].startswith(res.stats.solver)
     assert "3 friction devices" in x["auto_reason"] and x["auto_time"] >= 0.0
     assert "[auto: " in str(res.stats)
-    big = train(60, c_r=0.0).simulate(5.0, dt_out=0.05, accuracy=1e-4)      # too large for the modal traits
+    big = train(150, c_r=0.0).simulate(5.0, dt_out=0.05, accuracy=1e-4)     # too large for the modal traits
     assert big.stats.solver == "expm" and "linear" in big.stats.extra["auto_reason"]
 
 

@@ -417,16 +417,17 @@ def test_references_continuous_inside_the_run_are_accepted():
 
 def test_time_events_restart_the_same_ida_solver(monkeypatch):
     # a run with hundreds of time events and no mode change builds one IDA solver, not one per
-    # segment (building one costs about a dozen residual calls); the answer is the same
+    # segment (building one costs about a dozen residual calls); the answer is the same. The Python
+    # path's reuse rule (``_reusable``); the native path keeps one solver per run by construction
     import regmech.solvers.ida as ida
     built = []
     make = ida._make_solver
     monkeypatch.setattr(ida, "_make_solver", lambda *a, **k: built.append(1) or make(*a, **k))
     m = _pulsed(Pulse(amplitude=1.0, period=0.01, width=30.0))
-    res = m.simulate(2.0, dt_out=0.01, solver="ida")
+    res = m.simulate(2.0, dt_out=0.01, solver="ida", native=False)
     assert res.stats.segments >= 400 and len(built) <= 2
     monkeypatch.setattr(ida, "_reusable", lambda *a: None)
-    fresh = m.simulate(2.0, dt_out=0.01, solver="ida")
+    fresh = m.simulate(2.0, dt_out=0.01, solver="ida", native=False)
     assert len(built) >= 400
     np.testing.assert_allclose(res["J.w"], fresh["J.w"], rtol=0, atol=1e-12 * np.max(np.abs(fresh["J.w"])))
 

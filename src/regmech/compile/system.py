@@ -87,10 +87,12 @@ class CompiledSystem:
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
 
     # -------------------------------------------------------------- pickling
-    #: caches that hold SuperLU factorisations (not picklable), plans derived from them, or maps keyed by
-    #: ``id()`` of the structure's rows (``_output_maps``: other objects after unpickling); rebuilt on use
+    #: caches that hold SuperLU factorisations (not picklable), plans derived from them, maps keyed by
+    #: ``id()`` of the structure's rows (``_output_maps``: other objects after unpickling), or the native
+    #: path's tables, which hold the addresses of compiled kernels in this process (``_native_groups``) and
+    #: slots laid out for them; rebuilt on use
     _UNPICKLED = ("_kkt_cache", "_dummy_lu", "_jac_plan", "_ode_form", "_native_solvers", "_reference_noise",
-                  "_output_maps")
+                  "_output_maps", "_native_groups", "_native_layouts", "_native_friction_jac", "_native_eligible")
 
     def __getstate__(self):
         """Everything but the factorisation caches (``KernelGroup`` leaves out its lambdified template)."""

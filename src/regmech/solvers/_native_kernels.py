@@ -153,7 +153,9 @@ CLOCK_MONOTONIC = 1      # Linux: the clock of Python's time.monotonic()
 #: entries of the user data: ``[idata, fdata, hi, hf, ctl, clock_gettime, gi, gf]``
 N_UD = 8
 #: header lengths of the nonlinear groups' tables ``gi`` (int64) and ``gf`` (float64), ``ida_native.GroupTables``
-GI_HEAD, GF_HEAD, G_REC = 13, 6, 8
+GI_HEAD, GF_HEAD, G_REC = 15, 7, 10
+#: what ``_groups`` evaluates
+G_RES, G_JAC, G_SURF = 0, 1, 2
 
 
 @njit(cache=True, inline="always")
@@ -189,14 +191,16 @@ def _group_tables(ud):
 
 
 @njit(cache=True)
-def _groups(ud, fdata, buf, t, left, weights):
+def _groups(ud, fdata, buf, t, left, what):
     """The nonlinear device classes (``compile.codegen`` kernels): their signal inputs at t, their arguments
     ``[e; de; z] = E y + e0`` from the unknowns at ``fdata[buf:buf + N]`` (compiled order), then per group its
-    ``res`` kernel into its output slots of ``buf`` or, with ``weights``, its ``jac`` kernel into ``w``.
+    ``res`` kernel into its output slots of ``buf`` (``what`` G_RES), its ``jac`` kernel into ``w`` (G_JAC) or its
+    ``surf`` kernel into its block of surface values (G_SURF).
 
     ``gi``: ``[n_groups, n_erows, off_ptr, off_idx, off_dest, off_grp, n_gsig, off_gkind, off_gdest, n_w,
-    off_wptr, off_widx, length]``, a record per group ``[n, n_args, res, jac, args, out_slot, w,
-    n_jac]``; ``gf``: ``[off_edata, off_e0, off_gpar, off_wdata, off_w, length]``."""
+    off_wptr, off_widx, n_surf, off_sidx, length]``, a record per group ``[n, n_args, res, jac, args, out_slot,
+    w, n_jac, surf, surf_values]``; ``gf``: ``[off_edata, off_e0, off_gpar, off_wdata, off_w, off_sides,
+    length]``."""
     gh, gi, fh, gf = _group_tables(ud)
     for s in range(gh[6]):
         gf[gi[gh[8] + s]] = _signal_at(gi[gh[7] + s], gf, int(fh[2]) + N_PAR * s, t, left)
@@ -211,9 +215,12 @@ def _groups(ud, fdata, buf, t, left, weights):
         rec = gh[5] + G_REC * g
         n = gi[rec]
         a = ud[7] + 8 * gi[rec + 4]
-        if weights:
+        if what == G_JAC:
             if gi[rec + 7] > 0:
                 _call_kernel(gi[rec + 3], a, n, t, ud[7] + 8 * (int(fh[4]) + gi[rec + 6]))
+        elif what == G_SURF:
+            if gi[rec + 8] != 0:
+                _call_kernel(gi[rec + 8], a, n, t, ud[7] + 8 * gi[rec + 9])
         else:
             _call_kernel(gi[rec + 2], a, n, t, ud[1] + 8 * (buf + gi[rec + 5]))
 
@@ -241,7 +248,7 @@ def _variable_entries(ud, t, yy, yp):
     """Entry q of the Jacobian's nonlinear part ``W w`` is ``acc[q]``; computed into the groups' ``w`` first
     (their ``jac`` kernels at (t, y)). Returns ``(gh, gi, fh, gf)``; nothing when the model has no groups."""
     fdata, buf, N = _fill_unknowns(ud, yy, yp)
-    _groups(ud, fdata, buf, t, t >= fdata[0], True)
+    _groups(ud, fdata, buf, t, t >= fdata[0], G_JAC)
     return _group_tables(ud)
 
 
@@ -280,7 +287,7 @@ def _linear_rows(t, yy, yp, rr, ud):
     for s in range(n_sig):
         fdata[buf + idata[slot + s]] = _signal_at(idata[kind + s], fdata, par + N_PAR * s, t, left)
     if ud[6] != 0:
-        _groups(ud, fdata, buf, t, left, False)
+        _groups(ud, fdata, buf, t, left, G_RES)
     for i in range(N):
         row = idata[perm + i]
         acc = 0.0
@@ -344,43 +351,60 @@ def residual_friction(t, yy, yp, rr, user_data):
 _EV_SIG = types.int32(types.float64, types.voidptr, types.voidptr, types.CPointer(types.float64), types.voidptr)
 
 
+@njit(cache=True, inline="always")
+def _friction_events(hh, hi, fh, hf, j, y, t, left):
+    """Device j's two event functions (``events``)."""
+    fn = _normal_force(hh, hi, fh, hf, j, t, left)
+    kind = hi[hh[10] + j]
+    rel = hi[hh[12] + j]
+    if rel >= 0:
+        v = hf[int(fh[6]) + j] * y[rel] + hf[int(fh[7]) + j]
+    elif kind == EV_SLIDING:
+        w = 0.0
+        for q in range(hi[hh[4] + j], hi[hh[4] + j + 1]):
+            w += hf[int(fh[1]) + q] * y[hi[hh[5] + q]]
+        v = hi[hh[9] + j] * w
+        if v == 0.0:
+            v = 1e-300
+    elif kind == EV_STUCK:
+        tau0 = hf[int(fh[4]) + j] * fn if fn > 0.0 else 0.0
+        v = hf[int(fh[5]) + j] * tau0 - abs(y[hi[hh[7] + j]])
+    else:
+        v = 1.0
+    if hi[hh[11] + j]:
+        return v, fn
+    return v, (-fn if fn != 0.0 else 1e-300)
+
+
 @cfunc(_EV_SIG, cache=True)
 def events(t, yy, yp, gout, user_data):
-    """The ``2 mf`` event functions of ``hybrid.events`` (``_event_values_small``) in the segment's modes:
-    per device its first function (sliding ``mode w_rel``, stuck ``tau0_max - |lam|``, else 1; a relief
-    event ``ms lam_holder + tol`` in its place) and its engagement (``fn`` engaged, ``-fn`` not)."""
+    """The event functions of ``hybrid.surfaces.Guards`` in the segment's modes: the ``2 mf`` friction functions
+    of ``hybrid.events`` (``_event_values_small``), per device its first function (sliding ``mode w_rel``, stuck
+    ``tau0_max - |lam|``, else 1; a relief event ``ms lam_holder + tol`` in its place) and its engagement (``fn``
+    engaged, ``-fn`` not); then the switching surfaces of the nonlinear device classes, ``side_k g_k``."""
     ud = carray(_i64p(_address(user_data)), (N_UD,))
     ih = carray(_i64p(ud[0]), (11,))
     fdata = carray(_f64p(ud[1]), (1,))
-    hh, hi, fh, hf = _friction_tables(ud)
     N = ih[0]
     y = carray(_f64p(_second_pointer(_address(yy))), (N,))
-    mf = hh[0]
-    g = carray(gout, (2 * mf,))
     left = t >= fdata[0]
-    for j in range(mf):
-        fn = _normal_force(hh, hi, fh, hf, j, t, left)
-        kind = hi[hh[10] + j]
-        rel = hi[hh[12] + j]
-        if rel >= 0:
-            v = hf[int(fh[6]) + j] * y[rel] + hf[int(fh[7]) + j]
-        elif kind == EV_SLIDING:
-            w = 0.0
-            for q in range(hi[hh[4] + j], hi[hh[4] + j + 1]):
-                w += hf[int(fh[1]) + q] * y[hi[hh[5] + q]]
-            v = hi[hh[9] + j] * w
-            if v == 0.0:
-                v = 1e-300
-        elif kind == EV_STUCK:
-            tau0 = hf[int(fh[4]) + j] * fn if fn > 0.0 else 0.0
-            v = hf[int(fh[5]) + j] * tau0 - abs(y[hi[hh[7] + j]])
-        else:
-            v = 1.0
-        g[2 * j] = v
-        if hi[hh[11] + j]:
-            g[2 * j + 1] = fn
-        else:
-            g[2 * j + 1] = -fn if fn != 0.0 else 1e-300
+    mf = 0
+    if ud[2] != 0:
+        hh, hi, fh, hf = _friction_tables(ud)
+        mf = hh[0]
+        g = carray(gout, (2 * mf,))
+        for j in range(mf):
+            g[2 * j], g[2 * j + 1] = _friction_events(hh, hi, fh, hf, j, y, t, left)
+    if ud[6] != 0:
+        gh, gi, gfh, gf = _group_tables(ud)
+        ns = gh[12]
+        if ns > 0:
+            full, buf, _ = _fill_unknowns(ud, yy, yp)
+            _groups(ud, full, buf, t, left, G_SURF)
+            g = carray(gout, (2 * mf + ns,))
+            sides, sidx = int(gfh[5]), gh[13]
+            for k in range(ns):
+                g[2 * mf + k] = gf[sides + k] * gf[gi[sidx + k]]
     return 0
 
 

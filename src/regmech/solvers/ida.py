@@ -162,6 +162,8 @@ def _make_solver(c, modes, rtol, atol, linsolver, max_step, max_order, with_even
                int(max_steps))
         kept = c.__dict__.setdefault("_native_solvers", {})
         solver = kept.get(key)
+        if solver is not None and solver.pattern is not c.jac:
+            solver = None
         if solver is None:
             lband, uband = _band_widths(c, order) if linsolver == "band" else (0, 0)
             solver = NativeIDA(c, rtol, atol, linsolver, order, max_step, max_order, max_steps, lband, uband,
@@ -795,6 +797,8 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
         # one native solver serves every segment of the run: re-initialised (IDAReInit) with the segment's
         # tolerances, modes and event functions (its event bookkeeping is ours, see ``ida_native``)
         solver = reuse.get("native") if reuse is not None else None
+        if solver is not None and solver.pattern is not c.jac:
+            solver = None       # friction rows added at an event grew the Jacobian's pattern: its slots differ
         if solver is None:
             solver = _make_solver(c, modes, rtol, atol_vec, linsolver, max_step, max_order, with_events, order,
                                   max_steps, deadline, native)

@@ -243,7 +243,12 @@ def _eligible(c, linsolver):
     """``eligible`` computed, but for a wrapped residual."""
     plan = c._plan
     if getattr(c, "n_surf", 0):
-        return "switching surfaces of piecewise laws (contacts located as events in Python)"
+        nonlinear = {id(g) for g in plan.nonlinear}
+        for g, _, _ in c.surface_groups:
+            if id(g) not in nonlinear:
+                dev = g.devices[0]
+                return (f"{type(dev).__name__} '{dev.name}' has switching surfaces on a law that is affine "
+                        f"between them (evaluated in Python)")
     if plan.offset_slots:
         return f"offsets not linear in their signals ({', '.join(g.tpl.cls.__name__ for g, _ in plan.offset_slots)})"
     if plan.pos_refs or plan.spd_refs:
@@ -462,11 +467,14 @@ def friction_jacobian(c, modes):
     """``(jc, jcj)``: the constant and the ``cj`` part of the Jacobian entries in ``modes`` apart from the
     nonlinear device classes' weights, which the kernels add at every call (a model whose friction laws are
     ``linear_law``s: the rest depends on the modes only), cached per mode set."""
-    cache = c.__dict__.setdefault("_native_friction_jac", {})
+    jp = jacobian_plan(c)
+    kept = c.__dict__.get("_native_friction_jac")
+    if kept is None or kept[0] is not jp:       # a grown pattern makes every cached entry the wrong length
+        kept = c._native_friction_jac = (jp, {})
+    cache = kept[1]
     key = np.asarray(modes, np.int64).tobytes()
     hit = cache.get(key)
     if hit is None:
-        jp = jacobian_plan(c)
         z = np.zeros(c.N)
 
         def entries(cj):
@@ -502,7 +510,10 @@ def _group_tables(c):
     K = libraries().K
     plan, jp = c._plan, jacobian_plan(c)
     recs, entries, dest_rel, regions = [], [], [], []
-    start = w_pos = 0
+    start = w_pos = s_pos = 0
+    surf_at = {id(g): (first, active) for g, first, active in getattr(c, "surface_groups", ())}
+    n_surf = int(getattr(c, "n_surf", 0))
+    sidx_rel = np.zeros(n_surf, np.int64)
     for (g, r0, nb), (_, slot) in zip(plan.nl_args, plan.nl_out):
         dev = g.devices[0]
         what = f"{type(dev).__name__} '{dev.name}'"
@@ -521,7 +532,16 @@ def _group_tables(c):
                 entries.append(entry)
                 dest_rel.append(start + (nb + n_p + j) * n + i)
         regions.append((g, r0, nb, start))
-        recs.append([n, ker.n_args, ker.res, ker.jac, start, slot, w_pos, ker.n_jac])
+        surf, s_off = 0, 0
+        if id(g) in surf_at:
+            # surface k of the model is value (code i, instance active[a]) of the group's block: ``surface_values``
+            first, active = surf_at[id(g)]
+            inst = np.arange(n) if active is None else np.asarray(active, np.int64)
+            codes = np.arange(ker.n_surf)
+            sidx_rel[first: first + ker.n_surf * len(inst)] = s_pos + (codes[:, None] * n + inst[None, :]).ravel()
+            surf, s_off = ker.surf, s_pos
+            s_pos += ker.n_surf * n
+        recs.append([n, ker.n_args, ker.res, ker.jac, start, slot, w_pos, ker.n_jac, surf, s_off])
         start += ker.n_args * n
         w_pos += ker.n_jac * n
     if w_pos != jp.n_nonlinear:
@@ -531,34 +551,36 @@ def _group_tables(c):
     W = sp.csr_matrix(np.zeros((c.jac.nnz, 0)) if jp.W is None else jp.W)[:, :jp.n_nonlinear].tocsr()
     W.sum_duplicates()
     kinds, gpar, pool = pooled_entries(entries, 0)
-    # gf: header, E data, e0, the groups' argument blocks, w, signal parameters, W data, the tables' points
     args = np.zeros(start)
     for g, r0, nb, a0 in regions:
         for p, vals in enumerate(g.param_values):
             args[a0 + (nb + p) * g.n: a0 + (nb + p + 1) * g.n] = vals
-    parts_f = [E.data, plan.e0, args, np.zeros(w_pos), gpar, W.data, pool]
+    # gf: header, E data, e0, the groups' argument blocks, w, signal parameters, W data, the surfaces' values and
+    # sides (``NativeIDA.set_segment`` writes these), the tables' points
+    parts_f = [E.data, plan.e0, args, np.zeros(w_pos), gpar, W.data, np.zeros(s_pos), np.ones(n_surf), pool]
     offs_f, pos = [], K.GF_HEAD
     for a in parts_f:
         offs_f.append(pos)
         pos += len(a)
-    _place_pool(gpar, kinds, offs_f[6] - len(gpar))
-    parts_f[4] = gpar
+    _place_pool(gpar, kinds, offs_f[8] - len(gpar))
     a_start = offs_f[2]
+    for rec in recs:
+        rec[9] += offs_f[6]
     dest = np.zeros(E.shape[0], np.int64)
     for g, r0, nb, a0 in regions:
         dest[r0: r0 + nb * g.n] = a_start + a0 + np.arange(nb * g.n)
     for rec in recs:
         rec[4] += a_start
-    fh = [offs_f[0], offs_f[1], offs_f[4], offs_f[5], offs_f[3], pos]
+    fh = [offs_f[0], offs_f[1], offs_f[4], offs_f[5], offs_f[3], offs_f[7], pos]
     gf = np.concatenate([np.array(fh, float)] + [np.asarray(a, float) for a in parts_f])
     parts_i = [E.indptr, E.indices, dest, np.array(recs, np.int64).ravel(), kinds,
-               np.asarray(dest_rel, np.int64) + a_start, W.indptr, W.indices]
+               np.asarray(dest_rel, np.int64) + a_start, W.indptr, W.indices, sidx_rel + offs_f[6]]
     offs_i, pos = [], K.GI_HEAD
     for a in parts_i:
         offs_i.append(pos)
         pos += len(a)
     head = [len(recs), E.shape[0], offs_i[0], offs_i[1], offs_i[2], offs_i[3], len(entries), offs_i[4], offs_i[5],
-            w_pos, offs_i[6], offs_i[7], pos]
+            w_pos, offs_i[6], offs_i[7], n_surf, offs_i[8], pos]
     gi = np.concatenate([np.array(head, np.int64)] + [np.asarray(a, np.int64) for a in parts_i])
     for a in (gi, gf):
         a.flags.writeable = False          # each solver works on its own copy of gf
@@ -582,9 +604,13 @@ class NativeIDA:
         N = c.N
         self.N = N
         key = (linsolver, None if order.perm is None else tuple(order.perm), int(lband), int(uband))
-        layout = c.__dict__.setdefault("_native_layouts", {}).get(key)
+        self.pattern = c.jac        # the Jacobian pattern the slots below are laid out for
+        kept = c.__dict__.get("_native_layouts")
+        if kept is None or kept[0] is not c.jac:       # friction rows added at an event grow the pattern
+            kept = c._native_layouts = (c.jac, {})
+        layout = kept[1].get(key)
         if layout is None:
-            layout = c._native_layouts[key] = _layout(c, linsolver, order, int(lband), int(uband))
+            layout = kept[1][key] = _layout(c, linsolver, order, int(lband), int(uband))
         self.idata, self.fdata = layout[0].copy(), layout[1].copy()      # the kernels write into fdata
         self.friction = None
         # the wall-clock limit (deadline in ns of time.monotonic, 0: none), the flag the residual sets past it, and
@@ -604,12 +630,18 @@ class NativeIDA:
             gi_ptr, gf_ptr = self.gi.ctypes.data, self.gf.ctypes.data
         self.user = np.array([self.idata.ctypes.data, self.fdata.ctypes.data, hi_ptr, hf_ptr, self.ctl.ctypes.data,
                               lib.clock_address, gi_ptr, gf_ptr], np.int64)
+        # the event functions: the friction devices' two each, then the switching surfaces (``hybrid.surfaces``)
+        self.n_events = 2 * c.mf + int(getattr(c, "n_surf", 0))
+        if self.n_events:
+            self._rootdir = np.full(self.n_events, -1, np.int32)
+            self.rootsfound = np.zeros(self.n_events, np.int32)
+        if getattr(c, "n_surf", 0):
+            self._sides = slice(int(self.gf[5]), int(self.gf[5]) + c.n_surf)
         if c.mf:
-            self._rootdir = np.full(2 * c.mf, -1, np.int32)
-            self.rootsfound = np.zeros(2 * c.mf, np.int32)
             hdr = self.fdata[:7]
             self._jc = slice(int(hdr[4]), int(hdr[5]))
-            self._jcj = slice(int(hdr[5]), int(hdr[6]))
+            # the cj part is as long as the constant part (the tables' pooled points follow it)
+            self._jcj = slice(int(hdr[5]), 2 * int(hdr[5]) - int(hdr[4]))
         ctx = ctypes.c_void_p()
         if lib.ctx_create(0, ctypes.byref(ctx)) != 0:
             raise SimulationError(f"the native IDA path could not create a SUNDIALS context for model "
@@ -659,7 +691,7 @@ class NativeIDA:
         # here IDA's own count of accepted steps (IDAReInit sets it back to zero)
         self.regmech_attempts = [None, 0]
         self._counts = np.zeros(3, np.int64)       # IDA's residuals, Jacobians and steps (``segment`` writes them)
-        self._roots = self.rootsfound if c.mf else np.zeros(1, np.int32)
+        self._roots = self.rootsfound if self.n_events else np.zeros(1, np.int32)
         self._new_tolerances = False
         self._atol = np.ctypeslib.as_array(ctypes.cast(lib.nv_ptr(at), ctypes.POINTER(ctypes.c_double)), (N,))
 
@@ -677,6 +709,8 @@ class NativeIDA:
         Jacobian's constants of the mode set."""
         self._atol[:] = atol
         self._new_tolerances = True
+        if self.n_events > 2 * self.c.mf:
+            self.gf[self._sides] = self.c.surfaces.sides       # the side each surface starts the segment on
         if self.friction is None:
             return
         fr = self.c.friction
@@ -702,9 +736,9 @@ class NativeIDA:
                   lib.set_real["IDASetMinStep"](mem, 0.0),
                   lib.set_real["IDASetMaxStep"](mem, float(max_step) if max_step else 0.0),
                   lib.set_int["IDASetMaxOrd"](mem, max_order), lib.set_max_steps(mem, max_steps)]
-        if self.friction is not None:
+        if self.n_events:
             # every event terminal, each crossing downwards (``hybrid.events``), as the usual path asks of IDA
-            flags += [lib.root_init(mem, 2 * self.c.mf, K.events.address),
+            flags += [lib.root_init(mem, self.n_events, K.events.address),
                       lib.root_direction(mem, self._rootdir.ctypes.data)]
         if any(f < 0 for f in flags):
             raise RuntimeError(f"setting up the native IDA solver failed (flags {flags})")
