@@ -31,7 +31,7 @@ LAYERS = [
     {"analysis", "bench", "study", "cli", "scene", "sweep", "library", "draw", "docgen", "__root__"},
 ]
 CORE = {"errors", "_numbers", "ports", "modes", "units", "signals", "component", "result", "report", "io",
-        "plotting"}
+        "plotting", "data"}
 NEVER_COMPONENTS = {"compile", "hybrid", "solvers"}
 RANK = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
 
