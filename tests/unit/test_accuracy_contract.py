@@ -512,7 +512,7 @@ def test_a_rebound_series_counted_differently_is_one_change():
 
 
 def test_a_servo_rattling_in_a_hard_stop_meets_the_contract():
-    # a helper's fuzz, seed 90076 reduced: every pair of ida's runs counted the rebounds differently and the default
+    # a fuzz run, seed 90076 reduced: every pair of ida's runs counted the rebounds differently and the default
     # call was refused (ChatteringError after the Radau fallback); the motion agrees
     from regmech.components import HardStop, Position
     m = rm.Model("bounce")

@@ -383,7 +383,7 @@ def test_a_fallback_that_cannot_take_the_options_says_why_the_first_choice_refus
 def test_rule_e_prime_runs_expm_first_where_its_steps_are_fewer_on_a_fine_grid():
     """A stiff lightly damped chain (links of 1e6 N m/rad: rho about 2000 1/s) driven by a step at accuracy 1e-6:
     DOP853's cap takes about 2,700 steps for the pair against expm's 1,000 output steps at dt_out 1e-3 (the fuzz
-    campaign's cells of that kind: expm 1.1-8.5x faster), so expm runs first and dop853 next; at dt_out 1e-2 expm's
+    models' cells of that kind: expm 1.1-8.5x faster), so expm runs first and dop853 next; at dt_out 1e-2 expm's
     first step would be 20 times the fastest time scale (its first run refused and retried at a tiny step on the
     random trees), and at 2,000 states an expm step costs more: dop853 first."""
     from regmech.bench.hard_models import benchmark_chain
@@ -422,7 +422,7 @@ def _stiff_random_chain(n, seed, d_scale):
 
 
 def test_rule3_counts_ringing_modes_above_the_output_grid():
-    # session 19's fuzz: rule 3 capped the periods a stepping method must resolve at the output grid's Nyquist
+    # found by fuzzing: rule 3 capped the periods a stepping method must resolve at the output grid's Nyquist
     # frequency and chose ida, which resolved the lightly damped kHz modes of the stiff links for 2 s where expm
     # took 0.06 s (a chain of 117 inertias). Ringing on top (damping <= EXPLICIT_DAMPING x oscillation) and a
     # stiff spread lift the cap

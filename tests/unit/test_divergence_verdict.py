@@ -76,7 +76,7 @@ def test_only_a_methods_own_factor_may_overrule_the_verdict():
 
 def test_a_nonlinear_models_jacobian_is_taken_again_once_the_run_has_moved_on(monkeypatch):
     # the verdict at t judges the window of the last ROUGH_STEPS steps: a nonlinear model's dg/du older than that
-    # window is not used (fuzz campaign, session 17: a verdict reused a Jacobian from far earlier in the run)
+    # window is not used (found by fuzzing: a verdict reused a Jacobian from far earlier in the run)
     from regmech.components import QuadraticSpeedDependentTorque
     from regmech.solvers import ode_driver as od
     m = _stiff_pair(0.5)

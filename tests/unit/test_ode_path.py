@@ -1,4 +1,4 @@
-"""The ODE-form path's fast pieces (issue 15): the linear form of ``compile.odeform``, the spectral bound
+"""The ODE-form path's fast pieces: the linear form of ``compile.odeform``, the spectral bound
 of the explicit methods' up-front stiffness check, the signal list kept with the compiled model."""
 
 import numpy as np

@@ -33,7 +33,7 @@ def test_structural_matching_reports_unmatched():
     assert len(un_eq) == 1 and un_var == []
 
 
-# -- long rigid chains: iterative graph walks, linear cost (issue 13, item 8) --------------------
+# -- long rigid chains: iterative graph walks, linear cost --------------------
 import sys
 from contextlib import contextmanager
 

@@ -1,5 +1,5 @@
 """``res.save(path)`` / ``regmech.load_result(path)``: a MATLAB .mat file that keeps every signal, its unit,
-the events and the statistics, readable with plain scipy (issue 16, persistence)."""
+the events and the statistics, readable with plain scipy (persistence)."""
 
 import pickle
 

@@ -173,7 +173,7 @@ def test_a_stiffness_no_link_explains_is_named_by_its_mass_and_devices():
 def test_dop853_error_falls_with_rtol_on_a_forced_stiff_lightly_damped_pair(solver):
     # the step cap scales with rtol on the spectral radius for every model: a lightly damped, stiff link forced
     # slowly sits near DOP853's stability limit, where its global error stops following rtol if the steps may
-    # grow to that limit (session 16 tried a cap on the damping alone for symmetric mechanical systems: 1.2e-6
+    # grow to that limit (a cap on the damping alone was tried for symmetric mechanical systems: 1.2e-6
     # of the range at rtol 1e-5 to 1e-8 here, 5.2e-8 at 1e-9; reverted). Errors with the cap: 0.13-0.16 rtol.
     from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
     from regmech.signals import Sine

@@ -1,6 +1,6 @@
 """SUNDIALS' own error lines (``[IDASolve, Error: -22] At t = ..., mxstep steps taken before reaching
 tout.``) never reach the terminal: an IDA failure is a SimulationError that carries them
-(``solvers.sundials_log``; issue 13, item 10)."""
+(``solvers.sundials_log``)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A controller driving a friction device's normal force (issue 17, item 4): ``f_normalized=ctl.command(key)``
+"""A controller driving a friction device's normal force: ``f_normalized=ctl.command(key)``
 is a function of the state wherever the hybrid layer reads it (residual, event functions, mode logic). A PI
 slip controller against its closed-form steady state and a hand-written scipy model; a state-driven normal
 force against closed forms through stick, break-away, slip and release; the errors."""

@@ -1,4 +1,4 @@
-"""A friction element's lumped thermal mass inside the DAE (issue 17, item 6): ``C dT/dt = lam w_rel -
+"""A friction element's lumped thermal mass inside the DAE: ``C dT/dt = lam w_rel -
 G (T - T_amb)`` with the temperature a state and fade ``mu * fade(T)``; closed forms, an independent scipy
 model of a fading brake stop (slip, then stuck), the heat books, and the solvers that decline it."""
 
