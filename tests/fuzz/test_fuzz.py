@@ -29,6 +29,9 @@ from hypothesis import HealthCheck, Phase, given, settings, strategies as st  # 
 
 from regmech.bench.fuzz import RUNS, evaluate, generate  # noqa: E402
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 #: the CI set of runs: the answer-tolerance pair, the ida reference, expm (the DOP853 reference at rtol
 #: 1e-11 is for the long runs of ``benchmarks/fuzz.py``: it is the slowest run by far)
 CI_RUNS = tuple(r for r in RUNS if r[0] != "dop853_ref")

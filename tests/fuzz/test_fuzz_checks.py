@@ -14,6 +14,9 @@ from regmech.bench import fuzz
 from regmech.bench.fuzz import (FAMILIES, ModelSpec, agreement, energy_checks, evaluate, finite_check, generate,
                                 generate_seed, integrate)
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 
 def test_generator_builds_regular_models_of_every_family():
     seen = set()

@@ -19,6 +19,9 @@ from regmech.components import (Clutch, Differential, FrictionContact, Inertia, 
 from regmech.signals import Ramp, Sine, Step, Table
 from regmech.solvers.common import output_grid
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 
 def _lossy_gear_model(table, w0):
     m = rm.Model("lossy_table")

@@ -66,6 +66,7 @@ def path(request, monkeypatch):
     return request.param
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ours, theirs", PAIRS, ids=["dopri5", "dop853"])
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
 @pytest.mark.parametrize("rtol", [1e-4, 1e-8])

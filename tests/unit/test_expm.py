@@ -339,6 +339,7 @@ def test_a_sine_that_starts_inside_the_run_is_exact_from_its_start():
     assert off(r, ref, names) <= 1e-10
 
 
+@pytest.mark.slow
 def test_sine_near_resonance_is_exact_where_the_fit_rang():
     # the fit's ripple at the step rate excites a lightly damped mode near that rate (here 650 Hz, damping
     # ratio 1e-3) and the companion run at 2h rings alike: at 6 and 7 steps per 10 ms the error was 14-23 times the
@@ -461,6 +462,7 @@ def test_coupled_clutches_events_and_speeds_against_ida():
         assert np.max(np.abs(np.interp(ref.t, res.t, res[nm]) - ref[nm])) <= 1e-6, nm
 
 
+@pytest.mark.slow
 def test_one_way_clutch_against_dymola_including_the_grazing_lock(reference_dir):
     # at t = 1.5 the relative speed touches zero tangentially; Dymola's reference locks there and
     # releases at 1.50000159 s (duplicated time rows); on the exact flow expm finds the same touch
@@ -605,6 +607,7 @@ def test_tiny_sines_that_start_apart_are_not_confused():
     assert off(r, ref, names) <= 1e-9
 
 
+@pytest.mark.slow
 def test_sines_through_clutch_events_meet_tight_accuracies():
     # each stepper restarted at a located clutch event decided anew whether its (short) span
     # showed a sine, so the runs at h, 2h and 4h mixed exact and fitted spans and the contract refused 1e-5 to 1e-9

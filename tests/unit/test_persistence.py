@@ -31,6 +31,7 @@ def _assert_same(a, b):
     assert str(b.stats) == str(a.stats)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_round_trip_of_every_library_scene(name, tmp_path):
     res = _run(name)

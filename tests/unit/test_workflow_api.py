@@ -121,6 +121,7 @@ def _scenes():
     return list(SCENES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", _scenes())
 def test_every_signal_of_every_library_scene_has_a_unit_that_converts(scene):
     res = _run(scene)

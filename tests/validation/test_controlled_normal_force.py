@@ -184,6 +184,7 @@ def test_pi_command_parameters():
     assert PI.actuators == {"flange": "rotational"} and PICommand.actuators == {}
 
 
+@pytest.mark.slow
 def test_slip_control_scene():
     """The library scene: a launch under slip control with the clutch heating up and fading. The loop
     releases the clutch once (the vehicle overshoots the slip reference), engages again and locks when the

@@ -118,6 +118,7 @@ def _case_reference(case, t_end):
     return (t_out,) + reference_run(ratio, row, _sine(30.0, 1.3), _sine(60.0, 0.7, 0.4), w0, t_end, t_out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
 @pytest.mark.parametrize("solver, rtol", [("ida", 1e-10), ("scipy:DOP853", 1e-10)])
 def test_driving_side_switches_match_independent_model(case, solver, rtol):
@@ -229,6 +230,7 @@ def _fuzz_reference(which):
                                                         rtol=1e-11, atol=1e-13)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which, solver, rtol, tol", RUNS)
 def test_fuzz_model_agrees_across_solvers_and_tolerances(which, solver, rtol, tol):
     ref = _fuzz_reference(which)
@@ -276,6 +278,7 @@ def _two_gears_reference():
     return two_lossy_gears().simulate(4.0, dt_out=1e-3, solver="scipy:DOP853", rtol=1e-11, atol=1e-13)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver, rtol", [("scipy:DOP853", 1e-6), ("ida", 1e-6), ("ida", 1e-10)])
 def test_two_lossy_gears_in_series(solver, rtol):
     """Before the fix DOP853 at rtol 1e-6 was 1.7e-3 off with g1 supplying 0.14 W: its driving side

@@ -79,6 +79,7 @@ def test_a_brake_dragged_through_zero_by_a_source_slides_with_its_kinetic_torque
     assert np.max(np.abs(np.array(got) - expected)) < 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver,opts", RUNS, ids=[r[0] for r in RUNS])
 def test_a_brake_reaching_zero_slip_sticks_when_it_can_hold_the_slipping_clutch(solver, opts):
     res = model(phase=1.4, lock_fn=1000.0, brake_peak=1.5, w0=2.0 + 5.0 * math.sin(1.4)).simulate(T_END, dt_out=1e-3, solver=solver, **opts)
@@ -126,6 +127,7 @@ def _planetary_and_clutch():
     return m
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver,opts", [("ida", {"rtol": 1e-8}), ("scipy:DOP853", {"rtol": 1e-8})],
                          ids=["ida", "DOP853"])
 def test_a_lossy_gear_breaking_away_in_a_clutch_event_rolls_the_way_it_moves(solver, opts):

@@ -13,6 +13,9 @@ from regmech.components import Brake, Clutch, Fixed, Inertia, Speed, Torque
 from regmech.components.heat import ThermalMass
 from regmech.errors import ParameterError, SimulationError, StructureError
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 MU, CGEO, FN = 0.4, 0.1, 1000.0
 
 
