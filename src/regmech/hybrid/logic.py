@@ -1,6 +1,6 @@
 """The mode logic of friction and loss elements: iterating the modes at an event to a consistent set.
 
-As MSL does it (``PartialFriction``; shared/notes friction.md):
+As MSL does it (``Modelica.Mechanics.Rotational.Interfaces.PartialFriction``):
 
 * sliding -> Stuck when ``w_rel`` reaches zero (root of ``mode * w_rel``, decreasing); the new
   Stuck mode is checked only in the next iteration;

@@ -29,8 +29,8 @@ ratio ``zeta`` and frequency ``f`` stays above ``a`` of its amplitude for
 
     periods(a) = max over the modes of min(span * f, ln(1/a) / (2 pi zeta)).
 
-The rules (measured, see BENCHMARKS.md, "Calibration of the accuracy
-contract", which lists the figures each comes from):
+The rules (measured: ``benchmarks/results/calibration.md``, "The rules of
+``solver="auto"`` and the figures they come from"; summary in BENCHMARKS.md):
 
 ``expm`` is a candidate only for a linear model whose round-off bound is
 within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
