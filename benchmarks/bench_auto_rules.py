@@ -26,7 +26,7 @@ from bench_foundation import chain  # noqa: E402
 
 SOLVERS = ["auto", "ida", "ida native", "expm", "scipy:DOP853"]
 #: what a column runs: ``ida native`` is ida with its compiled callbacks (``native=True``), what auto and a plain
-#: ``solver="ida"`` run (numba is a dependency since session 20); ``ida`` the Python callbacks (``native=False``)
+#: ``solver="ida"`` run (numba is a dependency); ``ida`` the Python callbacks (``native=False``)
 RUN = {"ida native": ("ida", {"native": True}), "ida": ("ida", {"native": False})}
 ACCURACIES = [1e-2, 1e-4, 1e-6]
 DT_OUTS = [1e-2, 1e-3]
@@ -203,15 +203,15 @@ def boundary(a):
 
 FAMILY_SOLVERS = ["auto", "dop853", "ida native"]
 FAMILY_NOTES = """
-What the table shows (rule E: `regmech.solvers.auto`, session 18):
+What the table shows (rule E: `regmech.solvers.auto`):
 
 * `auto` runs `dop853` first on a linear model of at least 150 ODE states (400 at an accuracy looser than
-  1e-4 when this table was made; 200 since session 19) without friction devices whose
+  1e-4 when this table was made; 200 now) without friction devices whose
   damping bound is at most half its oscillation bound (`ode_driver.spectral_split`) and whose pair of runs fits
   DOP853's step budget; `ida`, then `expm`, if it refuses. The chains and trees pass the test, the damped chains
   (`chain100_d100`, `chain100_d3000`: damping 2 and 60 times the oscillation) and `tree200_heavy_d` (9 times)
   do not, nor the chain of 30 inertias (60 states) or the tree of 50 (100 states).
-* Before rule E, measured in this session by the same models and cells (the code before it, `auto` with ida
+* Before rule E, measured on the same machine by the same models and cells (the code before it, `auto` with ida
   native where numba is there; medians of 3, wall ms, the machine as below), `auto` took:
 
   | model | states | dt_out | accuracy | auto before rule E | its choice |

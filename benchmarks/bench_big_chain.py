@@ -1,4 +1,4 @@
-"""Large chains end to end (issue 15): build, compile, simulate and read named results, each size in a
+"""Large chains end to end: build, compile, simulate and read named results, each size in a
 fresh Python process, with the wall time of every phase, the resident memory after it, and the whole
 process's wall time and peak memory (as ``/usr/bin/time -v`` reports them: interpreter start, imports and
 exit included).

@@ -6,7 +6,7 @@ On the benchmark chains (``bench_foundation.chain``, 1 s, output every 10 ms, rt
 scipy's DOP853 by hand (``peers.scipy_models.chain``) with numpy's BLAS threads as they are, the same hand run
 inside ``one_blas_thread`` (what the hand gains from the same setting), and regmech's ``scipy:DOP853`` at rtol r
 and at 20 r (the peers' matched-error row, ``bench_peers.ODE_LOOSER``). Writes
-``benchmarks/results/blas_threads_session22.md``.
+``benchmarks/results/blas_threads.md``.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000])
     ap.add_argument("--load-note", default="")
-    ap.add_argument("--out", default=str(HERE / "results" / "blas_threads_session22.md"))
+    ap.add_argument("--out", default=str(HERE / "results" / "blas_threads.md"))
     args = ap.parse_args(argv)
     rtol = 1e-6
     lines = ["# One BLAS thread on the ODE-form path (`regmech.solvers.blas`)", "",

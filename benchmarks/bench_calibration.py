@@ -8,8 +8,8 @@ Every solver at accuracies 1e-2 .. 1e-6 (a subset per solver, ``regmech.bench.ca
 the library scenes and the hard cases at CI size, ``solver="auto"`` included; each returned run's error
 against the case's reference in the contract's measure. Writes ``benchmarks/results/calibration.md``,
 ``calibration.png`` and ``benchmarks/results/wp/calibration.csv`` (a rerun resumes from the CSV unless
-``--fresh``); ``python benchmarks/run_benchmarks.py --assemble`` puts the section into BENCHMARKS.md.
-The same campaign: ``regmech bench --calibration --out DIR``.
+``--fresh``); BENCHMARKS.md summarises it.
+The same runs: ``regmech bench --calibration --out DIR``.
 
 ``--random N`` calibrates instead on N random drivetrains of the fuzz generator (``auto``, ``ida`` and
 ``scipy:DOP853`` at 1e-2 and 1e-4, the default call at 1e-3): ``benchmarks/results/calibration_random.md``

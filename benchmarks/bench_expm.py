@@ -1,4 +1,4 @@
-"""Benchmark: the step-doubling exponential integrator ("expm", SOURCES.md 002) against scipy and IDA.
+"""Benchmark: the step-doubling exponential integrator ("expm", REFERENCES.md [002]) against scipy and IDA.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_expm.py [--sizes 10 100 1000] [--repeat 3]
                                                           [--out benchmarks/results/expm.md]
@@ -284,7 +284,7 @@ def main(argv=None) -> int:
         roundoff_check(1e5, scaling="frequency")
 
     lines = [
-        "# expm: the step-doubling matrix exponential (SOURCES.md 002)",
+        "# expm: the step-doubling matrix exponential (REFERENCES.md [002])",
         "",
         f"Machine: {platform.machine()}, {os.cpu_count()} cores (shared with other jobs), Python "
         f"{platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "

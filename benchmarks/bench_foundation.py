@@ -1,4 +1,4 @@
-"""Foundation benchmark (issue 2): compile scaling, residual/Jacobian cost, and a
+"""Foundation benchmark: compile scaling, residual/Jacobian cost, and a
 1,000-inertia chain integrated by IDA and by scipy side by side.
 
     python benchmarks/bench_foundation.py [--quick] [--repeat 3] [--baseline REV]

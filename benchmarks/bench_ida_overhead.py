@@ -138,7 +138,7 @@ def main() -> None:
         old.close()
         new.close()
     load1 = os.getloadavg()
-    lines = ["# IDA per-call overhead (issue 15)", "",
+    lines = ["# IDA per-call overhead", "",
              f"IDA overhead, before ({old.where}) and after ({new.where}; native: solver='ida', native=True), "
              f"interleaved; medians of {args.repeats}; {platform.processor() or platform.machine()}, "
              f"{os.cpu_count()} cores, load {load0[0]:.2f} -> {load1[0]:.2f}", "",

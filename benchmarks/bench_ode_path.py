@@ -1,4 +1,4 @@
-"""regmech's ODE-form path against the same scipy method written by hand on the same equations (issue 15).
+"""regmech's ODE-form path against the same scipy method written by hand on the same equations.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_ode_path.py [--repeat 5] [--sizes 10 1000 10000]
                                                              [--solvers scipy:DOP853 ...] [--old /work/main/src]

@@ -1,4 +1,4 @@
-"""regmech against the code a user would write instead (issue 15): peers side by side.
+"""regmech against the code a user would write instead: peers side by side.
 
     python benchmarks/bench_peers.py [--repeats 5] [--cases first cc chain10 ...]
                                      [--no-bigchain] [--out benchmarks/results/peers.md]
@@ -45,7 +45,7 @@ time ratio is within it and regmech's error is within the bound.
 The ODE-form rows compare regmech's ``scipy:DOP853`` with the same method by
 hand. At the same rtol the two do not do the same work: regmech caps
 DOP853's step below its stability limit, more tightly the tighter rtol
-(``scipy_ivp.stability_cap``, session 11), and is 3 to 20 times more
+(``scipy_ivp.stability_cap``), and is 3 to 20 times more
 accurate there on the chains. The judged row therefore runs regmech at a
 looser rtol, the loosest of ``ODE_LOOSER`` (3, 10 and 20) times rtol whose
 error is at most the hand run's (measured per row; the row says so when
@@ -196,7 +196,7 @@ class Tool:
 #: within the hand run's at r (module docstring): measured on the chains of 100 to 10,000 inertias at rtol 1e-6 and
 #: 1e-9, regmech at 3 r was within the hand run's error in every case (chain1000 at 1e-6: 2.4e-6 against 9.8e-6;
 #: chain100 at 1e-9: 5.0e-9 against 5.5e-9), at 10 r on the largest chains (chain10000 at 1e-6: 1.4e-5 against
-#: 3.5e-5, 70 steps against the hand's 62), and on chain10000 at 1e-6 at 20 r too (session 20: 3.38e-5 against 3.47e-5,
+#: 3.5e-5, 70 steps against the hand's 62), and on chain10000 at 1e-6 at 20 r too (3.38e-5 against 3.47e-5,
 #: 64 steps): the step between 10 and 30 (5.2e-5, beyond the hand's error) so that the matched run is matched, not
 #: 2.5 times more accurate
 ODE_LOOSER = (3.0, 10.0, 20.0)
@@ -207,8 +207,8 @@ NOT_BEST = {f"regmech scipy:DOP853 at {f:g} rtol" for f in ODE_LOOSER if f > 3.0
 def regmech_tools(case: Case, rtol: float, budget: float) -> list[Tool]:
     acc = error_bound(rtol)
     configs = [("regmech default (auto)", {} if acc == 1e-3 else {"accuracy": acc}),
-               # ``solver="ida"`` as a user writes it: the compiled callbacks where the model allows (the default since
-               # session 20), and the Python callbacks it took before, for reading
+               # ``solver="ida"`` as a user writes it: the compiled callbacks where the model allows (the
+               # default), and the Python callbacks (``native=False``), for comparison
                ("regmech ida", {"solver": "ida", "rtol": rtol}),
                ("regmech ida, Python callbacks (native=False)", {"solver": "ida", "rtol": rtol, "native": False}),
                ("regmech scipy:DOP853", {"solver": "scipy:DOP853", "rtol": rtol})]
@@ -345,7 +345,7 @@ def build_times(case: Case, repeats: int) -> tuple[float, float]:
     return statistics.median(b), statistics.median(c)
 
 
-#: the cases whose explicit runs' up-front check is timed apart (issue 15: no check over 5 % of its run)
+#: the cases whose explicit runs' up-front check is timed apart (target: no check over 5 % of its run)
 CHECKED = ("chain1000", "chain10000")
 
 
@@ -466,7 +466,7 @@ def fastest(tools, groups, bound, labels=None):
 
 
 def target_rows(case: Case, rtol: float, tools: list[Tool]) -> list[list[str]]:
-    """Rows of the targets table for one case and rtol (issue 15's targets)."""
+    """Rows of the targets table for one case and rtol (the targets of the module docstring)."""
     bound = error_bound(rtol)
     default = next(t for t in tools if t.label == "regmech default (auto)")
     best = fastest([t for t in tools if t.label not in NOT_BEST], ("regmech",), bound)
@@ -604,7 +604,7 @@ def load_raw(path: Path) -> dict:
 
 def write_report(path: Path, facts, results, builds, refs, big, notes, repeats, budget, wall, load_end, command,
                  load_note="", checks=None):
-    L = ["# Peers: regmech against hand-written scipy and CasADi (issue 15)", "",
+    L = ["# Peers: regmech against hand-written scipy and CasADi", "",
          f"Produced by `{command}` in {wall / 60:.1f} min. Each case and rtol: every tool once as a warm-up, then "
          f"{repeats} rounds in alternating order in one process; times are medians (a tool whose warm-up took over "
          f"{budget:g} s ran once, marked *single*); the ratio is of wall times, the process CPU times' ratio is "

@@ -1,4 +1,4 @@
-"""Build + compile time of long rigid chains (issue 13, item 8).
+"""Build + compile time of long rigid chains.
 
     python benchmarks/bench_rigid_chain.py [--sizes 1000 3000 10000 30000] [--repeat 3] [--simulate]
 

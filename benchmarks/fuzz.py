@@ -31,14 +31,14 @@ RESULTS = ROOT / "benchmarks" / "results"
 CAUSES_BEGIN, CAUSES_END = "<!-- fuzz-causes:begin -->", "<!-- fuzz-causes:end -->"
 
 
-#: the families models are drawn from (``--families``): None all of them, or a tuple (``FAMILIES_BEFORE_17``: the
-#: models a seed drew before the families of issue 17 were added, to recheck an earlier campaign's seeds)
+#: the families models are drawn from (``--families``): None all of them, or a tuple (``FAMILIES_BASIC``: the
+#: models a seed drew with the first 26 families, to recheck the verdicts of the earliest runs)
 FAMILY_SET = None
 
 
 def _families(name):
-    from regmech.bench.fuzz import FAMILIES_BEFORE_17, FAMILIES_BEFORE_S9
-    return {"all": None, "before17": FAMILIES_BEFORE_17, "before_s9": FAMILIES_BEFORE_S9}[name]
+    from regmech.bench.fuzz import FAMILIES_BASIC, FAMILIES_NO_IMPACTS
+    return {"all": None, "basic": FAMILIES_BASIC, "no_impacts": FAMILIES_NO_IMPACTS}[name]
 
 
 def _child(seed, conn, run_limit, max_calls, families=None):
@@ -324,9 +324,10 @@ def main(argv=None):
     ap.add_argument("--report-only", action="store_true", help="rewrite the report from --jsonl")
     ap.add_argument("--show", type=int, help="print the reproducer script of this seed and exit")
     ap.add_argument("--verbose", action="store_true")
-    ap.add_argument("--families", choices=("all", "before17", "before_s9"), default="all",
-                    help="families to draw from: all, or those before issue 17 / before session 9 (the models of "
-                         "an earlier campaign's seeds, e.g. to --recheck them: campaigns up to seed 69999 used before_s9)")
+    ap.add_argument("--families", choices=("all", "basic", "no_impacts"), default="all",
+                    help="families to draw from: all; basic (the first 26, without the drivetrain components) or "
+                         "no_impacts (all but hard_stop and thermal_friction) draw the models of earlier runs' seeds, "
+                         "e.g. to --recheck them: runs up to seed 69999 used no_impacts")
     args = ap.parse_args(argv)
     global FAMILY_SET
     FAMILY_SET = _families(args.families)

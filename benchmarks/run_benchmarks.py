@@ -2,19 +2,16 @@
 
     python benchmarks/run_benchmarks.py --wp        # work-precision of every solver on every scene
     python benchmarks/run_benchmarks.py --hard      # hard cases at full size, every solver
-    python benchmarks/run_benchmarks.py --assemble  # BENCHMARKS.md from benchmarks/results/*.md
-    python benchmarks/run_benchmarks.py --peers     # regmech against its peers (bench_peers.py), then --assemble
+    python benchmarks/run_benchmarks.py --peers     # regmech against its peers (bench_peers.py)
     python benchmarks/run_benchmarks.py --rewrite   # the work-precision report again from its CSV
-    python benchmarks/run_benchmarks.py --all       # the three in turn
+    python benchmarks/run_benchmarks.py --all       # --wp and --hard in turn
 
 Outputs: ``benchmarks/results/work_precision.md`` (with ``results/wp/``: CSV
 and one log-log plot per scene), ``benchmarks/results/hard_cases.md`` (and
-``results/wp/hard_cases.csv``), and ``BENCHMARKS.md`` at the top of the
-repository, assembled from the sections in ``benchmarks/results/`` that exist
-(``foundation.md``, ``work_precision.md``, ``hard_cases.md``, ``linsolver.md``, ``modal.md``,
-``solvers_ode.md``, ``expm.md``, ``sweep.md``, ``fuzz.md``: written by ``benchmarks/fuzz.py``; ``peers.md``: regmech against hand-written scipy and CasADi, ``benchmarks/bench_peers.py``). The "which solver to pick"
-text of BENCHMARKS.md is kept between its markers when the file is
-re-assembled (it is written by hand from the figures).
+``results/wp/hard_cases.csv``), ``benchmarks/results/peers.md``. Every other
+script in ``benchmarks/`` writes its own report into ``benchmarks/results/``;
+``BENCHMARKS.md`` at the top of the repository summarises the latest figures
+of each report by hand, with the command that regenerates it.
 
 Options: ``--scenes``, ``--solvers``, ``--repeats`` (3), ``--time-limit`` per
 run [s] (120 for work-precision, 60 for hard cases), ``--cache`` (reference
@@ -28,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import re
 import sys
 import time
 from dataclasses import asdict
@@ -37,10 +33,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 WP_DIR = RESULTS / "wp"
-SECTIONS = ["peers.md", "fuzz.md", "calibration.md", "calibration_random.md", "auto_rules.md", "foundation.md",
-            "work_precision.md", "hard_cases.md", "solvers_ode.md", "ida_overhead.md", "ode_path.md", "big_chain.md",
-            "linsolver.md", "expm.md", "rigid_chain.md", "modal.md", "sweep.md"]
-PICK_BEGIN, PICK_END = "<!-- which-solver:begin -->", "<!-- which-solver:end -->"
 
 
 def run_wp(args) -> None:
@@ -177,56 +169,13 @@ def run_hard(args) -> None:
     print(f"hard cases: {len(outcomes)} runs, {wall / 60:.1f} min in total -> {RESULTS / 'hard_cases.md'}")
 
 
-def _demote(text: str, prefix: str) -> str:
-    """Headings one level down (sections under the BENCHMARKS.md title); relative links re-rooted."""
-    out = []
-    fence = False
-    for line in text.splitlines():
-        if line.startswith("```"):
-            fence = not fence
-        if not fence and re.match(r"#{1,5} ", line):
-            line = "#" + line
-        out.append(line)
-    text = "\n".join(out)
-    return re.sub(r"\]\((?!https?:|/|#)([^)]+)\)", lambda m: f"]({prefix}{m.group(1)})", text)
-
-
-def assemble(args) -> Path:
-    from regmech.bench.machine import machine_info, machine_line
-    target = ROOT / "BENCHMARKS.md"
-    old = target.read_text() if target.exists() else ""
-    if PICK_BEGIN in old and PICK_END in old:
-        pick = old[old.index(PICK_BEGIN): old.index(PICK_END) + len(PICK_END)]
-    else:
-        pick = f"{PICK_BEGIN}\n(written from the figures below after a full run)\n{PICK_END}"
-    present = [s for s in SECTIONS if (RESULTS / s).exists()]
-    parts = ["# Benchmarks", "",
-             "Measured with the scripts in `benchmarks/` on a shared 2-core machine (medians of several runs; "
-             "ratios against scipy measured side by side in the same run). Each section names its machine and "
-             "versions; assembled by `python benchmarks/run_benchmarks.py --assemble` on "
-             f"{machine_line({k: v for k, v in machine_info().items() if k in ('cpu', 'cores (nproc)', 'python', 'numpy', 'scipy', 'scikit-sundae', 'date')})}.",
-             "", "Sections: " + ", ".join(f"[{s[:-3]}](#{_anchor(s)})" for s in present) + ".", "",
-             "## Which solver to pick", "", pick, ""]
-    for s in present:
-        parts += [_demote((RESULTS / s).read_text().strip(), "benchmarks/results/"), ""]
-    target.write_text("\n".join(parts))
-    print(f"assembled {target} from {present}")
-    return target
-
-
-def _anchor(section_file: str) -> str:
-    title = (RESULTS / section_file).read_text().splitlines()[0].lstrip("# ").strip().lower()
-    return re.sub(r"[^a-z0-9 -]", "", title).replace(" ", "-")
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--wp", action="store_true", help="work-precision run (full size)")
     p.add_argument("--hard", action="store_true", help="hard cases (full size)")
-    p.add_argument("--assemble", action="store_true", help="assemble BENCHMARKS.md")
     p.add_argument("--peers", action="store_true",
-                   help="regmech against hand-written scipy and CasADi (benchmarks/bench_peers.py), then assemble")
-    p.add_argument("--all", action="store_true", help="--wp, --hard and --assemble")
+                   help="regmech against hand-written scipy and CasADi (benchmarks/bench_peers.py)")
+    p.add_argument("--all", action="store_true", help="--wp and --hard")
     p.add_argument("--scenes", nargs="+")
     p.add_argument("--cases", nargs="+")
     p.add_argument("--solvers", nargs="+")
@@ -239,8 +188,8 @@ def main(argv=None) -> int:
                    help="with --wp --scenes or --hard: keep the previous records of the other scenes/cases "
                         "(--hard without --cases: resume, running only the cases not yet recorded)")
     args = p.parse_args(argv)
-    if not (args.wp or args.hard or args.assemble or args.all or args.rewrite or args.peers):
-        p.error("choose --wp, --hard, --assemble, --rewrite, --peers or --all")
+    if not (args.wp or args.hard or args.all or args.rewrite or args.peers):
+        p.error("choose --wp, --hard, --rewrite, --peers or --all")
     if args.rewrite:
         rewrite_wp(args)
     if args.wp or args.all:
@@ -251,8 +200,6 @@ def main(argv=None) -> int:
         sys.path.insert(0, str(ROOT / "benchmarks"))
         import bench_peers
         bench_peers.main(["--repeats", str(max(args.repeats, 5))])
-    if args.assemble or args.all or args.peers:
-        assemble(args)
     return 0
 
 

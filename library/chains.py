@@ -1,4 +1,4 @@
-"""Chains of masses: a starting train and a chain-drive span (SOURCES.md 002).
+"""Chains of masses: a starting train and a chain-drive span (REFERENCES.md [002]).
 
 Both are the examples of the matrix numerical-analytical method: a train of
 n cars has a tridiagonal stiffness matrix; a chain-drive span with 6
@@ -34,7 +34,7 @@ def train(n: int = 10, m_car: float = 60e3, c: float = 2e7, d: float = 5e4, forc
     ``RoadLoad`` with sign(v) smoothed over ``v_eps`` [m/s]). Everything
     starts at rest with the couplers unstretched.
 
-    The stiffness matrix is tridiagonal (SOURCES.md 002, the railway train);
+    The stiffness matrix is tridiagonal (REFERENCES.md [002], the railway train);
     the free-free chain has the eigenfrequencies
     ``omega_k = 2 sqrt(c / m_car) sin(k pi / (2 n))``, k = 0..n-1 (k = 0 the
     rigid-body motion). Simulate some tens of seconds; the coupler forces

@@ -1,4 +1,4 @@
-"""Two-motor swing drive of a mining excavator (EKG-5A), the test case of SOURCES.md 004.
+"""Two-motor swing drive of a mining excavator (EKG-5A), the test case of REFERENCES.md [004].
 
 The upper structure (turntable with boom, handle and dipper) is swung by two DC
 motors fed in series from one generator (a generator-motor Ward-Leonard drive).
@@ -14,7 +14,7 @@ model is a branched three-mass system::
                         | swing_friction (M_c2, stick/slip)
                       ground
 
-Equations (SOURCES.md 004, motor side, SI units)::
+Equations (REFERENCES.md [004], motor side, SI units)::
 
     T_a i_a' + i_a = (u_a(t) - C_1 w_M1 - C_2 w_M2) / R_a          [A]
     J_Mk w_Mk' = C_k i_a - M_el,k - beta (w_Mk - w_2)               [N m]
@@ -85,7 +85,7 @@ def excavator_swing(speed_fraction: float = 0.1, ramp_time: float = 0.5, j_motor
                     j_turntable: float = 50.0, c_shaft: float = 1500.0, backlash: float = 0.08,
                     beta: float = 10.0, m_c2: float = 400.0, peak: float = 1.1, r_a: float = 0.2,
                     t_a: float = 0.05, c_motor: float = 5.35, w_nominal: float = W_NOMINAL) -> rm.Model:
-    """EKG-5A swing drive (SOURCES.md 004), started to ``speed_fraction`` of nominal speed.
+    """EKG-5A swing drive (REFERENCES.md [004]), started to ``speed_fraction`` of nominal speed.
 
     Parameters as in the module docstring (all at the motor side, SI): motor
     inertias ``j_motor`` [kg m^2], reflected turntable ``j_turntable`` [kg m^2],

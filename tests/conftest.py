@@ -7,19 +7,13 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 ROOT = Path(__file__).resolve().parents[1]
 
-
-def _find_reference():
-    for cand in (ROOT.parent / "shared" / "reference" / "msl", ROOT / "shared" / "reference" / "msl"):
-        if cand.is_dir():
-            return cand
-    return None
-
-
-REFERENCE = _find_reference()
+#: the MSL reference trajectories, shipped in the package (src/regmech/data/msl, with their source and licence)
+REFERENCE = ROOT / "src" / "regmech" / "data" / "msl"
 
 
 @pytest.fixture
 def reference_dir():
-    if REFERENCE is None:
-        pytest.fail("reference data ../shared/reference/msl not found next to the repository")
+    """The repository's MSL reference folder (never one outside the repository)."""
+    if not (REFERENCE / "First.csv").is_file():
+        pytest.fail(f"MSL reference data missing from the repository: {REFERENCE}")
     return REFERENCE

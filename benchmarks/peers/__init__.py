@@ -1,4 +1,4 @@
-"""Peers of regmech in the benchmarks (issue 15): the same models written by hand.
+"""Peers of regmech in the benchmarks: the same models written by hand.
 
 ``scipy_models``: First, CoupledClutches (event restarts) and the benchmark
 chains by hand on ``scipy.integrate.solve_ivp``; ``casadi_models``: First and

@@ -70,16 +70,16 @@ def _demo(args) -> int:
 
 def _compare_reference(name, res):
     import numpy as np
-    here = Path(__file__).resolve()
-    cands = [p / "shared" / "reference" / "msl" for p in list(here.parents)[:6]] + \
-            [Path.cwd().parent / "shared" / "reference" / "msl"]
-    ref_dir = next((p for p in cands if p.is_dir()), None)
+    from regmech.data import msl_dir
     file = {"first": "First.csv", "coupled_clutches": "CoupledClutches.csv"}.get(name)
     if file is None:
         return
-    if ref_dir is None or not (ref_dir / file).exists():
+    path = msl_dir() / file
+    if not path.exists():
+        # only when $REGMECH_MSL_REFERENCE names a folder without the file: say so, never skip silently
+        print(f"    (no MSL comparison: {path} not found)")
         return
-    ref = np.genfromtxt(ref_dir / file, delimiter=",", names=True)
+    ref = np.genfromtxt(path, delimiter=",", names=True)
     cols = {"first": [("inertia3.w", "inertia3w"), ("damper.w_rel", "damperw_rel")],
             "coupled_clutches": [("J1.w", "J1w"), ("clutch1.w_rel", "clutch1w_rel"),
                                  ("clutch3.w_rel", "clutch3w_rel")]}[name]

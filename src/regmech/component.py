@@ -6,7 +6,7 @@ described by
 
 * its **structure**: ``rows()``, a list of linear maps from its flanges'
   positions to device coordinates, ``e_r = sum_f c_rf x_f`` (the rows of
-  the structure matrix of SOURCES.md 000);
+  the structure matrix of REFERENCES.md [000]);
 * its **law**, by kind:
 
   - ``compliant``: generalised forces ``tau_r = law(e, de)``, written once

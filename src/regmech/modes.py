@@ -1,7 +1,7 @@
 """Mode codes of variable-structure devices (friction and loss elements).
 
 One integer per device selects the branch of its universal equation
-(SOURCES.md 003, MSL PartialFriction); the codes are shared by the
+(REFERENCES.md [003], MSL PartialFriction); the codes are shared by the
 components that state the laws, the compiled rows that evaluate them and
 the hybrid layer that switches them, so they live in the core.
 """

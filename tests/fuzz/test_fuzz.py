@@ -15,7 +15,7 @@ found in the loaded modules' source into its draws -- about 5 % of them --, so c
 modules changed the models of two groups, and a fresh virtual environment with another hypothesis version
 would have drawn others again.) ``FUZZ_HYPOTHESIS=N`` runs the same property on N models per group drawn by
 hypothesis instead (exploration; a finding prints its model as a script, ``FUZZ_SHRINK=1`` shrinks it first).
-A long campaign is ``benchmarks/fuzz.py``.
+Long runs with a report: ``benchmarks/fuzz.py``.
 """
 
 import os
@@ -29,8 +29,11 @@ from hypothesis import HealthCheck, Phase, given, settings, strategies as st  # 
 
 from regmech.bench.fuzz import RUNS, evaluate, generate  # noqa: E402
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 #: the CI set of runs: the answer-tolerance pair, the ida reference, expm (the DOP853 reference at rtol
-#: 1e-11 is the campaign's: it is the slowest run by far)
+#: 1e-11 is for the long runs of ``benchmarks/fuzz.py``: it is the slowest run by far)
 CI_RUNS = tuple(r for r in RUNS if r[0] != "dop853_ref")
 #: equation evaluations per run (a run beyond it is a finding of kind "budget")
 MAX_CALLS = 300_000
@@ -40,7 +43,7 @@ MAX_CALLS_OPEN = 100_000
 _budget = [MAX_CALLS]
 #: the relative error at which the CI subset reads the heats for the finite check (``finite_check``): at the runs'
 #: own (rtol 1e-10 for ida's reference) the quadrature re-integrated most output intervals, 73 of vehicle-4002's
-#: 92 s (profiled); the long campaign (``benchmarks/fuzz.py``) reads them at the runs' own
+#: 92 s (profiled); the long runs (``benchmarks/fuzz.py``) read them at the runs' own
 INTEGRAL_TOL = 1e-6
 SOURCES = ["torque", "force", "speed", "position"]
 GROUPS = {
@@ -51,11 +54,11 @@ GROUPS = {
     "vehicle": ["wheel", "magic_formula_wheel", "road_load", "engine", "shaft_elastic", "clutch"],
     "rough": ["spring_damper", "shaft_rigid", "clutch", "differential"],
     "electric": ["dc_motor", "electric_motor", "pi_control", "spring_damper", "shaft_elastic", "ideal_gear", "clutch"],
-    # the components of issue 17: end stops, gaps, speed-dependent loads, Stribeck clutches and brakes,
+    # drivetrain components: end stops, gaps, speed-dependent loads, Stribeck clutches and brakes,
     # LinearBrake, VehicleLoad, Gearbox, TorqueConverter
     "driveline": ["end_stop", "elasto_gap", "speed_load", "stribeck_clutch", "linear_brake", "vehicle_load",
                   "gearbox", "torque_converter", "spring_damper"],
-    # session 9: rigid impacts (HardStop, LinearHardStop) and friction elements with a thermal mass and fade
+    # rigid impacts (HardStop, LinearHardStop) and friction elements with a thermal mass and fade
     "impacts": ["hard_stop", "thermal_friction", "spring_damper", "clutch", "ideal_gear"],
 }
 EXAMPLES = {"links": 10, "gears": 10, "friction": 10, "vehicle": 8, "rough": 4, "electric": 8, "driveline": 8,
@@ -72,8 +75,8 @@ SEED_BASE = {"links": 1000, "gears": 2000, "friction": 3000, "vehicle": 4000, "r
 #: seeds of the CI set with findings that are still open (strict xfail: a fix turns them into failures to
 #: unmark); each is listed in benchmarks/results/fuzz.md's open causes
 OPEN: dict[int, str] = {}
-# 4004 (open since session 6: IDA needed 362,268 evaluations on two wheels of one hub with a position servo and a
-# sliding clutch) was fixed in session 10 by the dummy's reflected inertia and the algebraic unknowns' tolerance
+# 4004 (IDA needed 362,268 evaluations on two wheels of one hub with a position servo and a
+# sliding clutch) was fixed by the dummy's reflected inertia and the algebraic unknowns' tolerance
 # (``structure.system._reflected_mass``, ``solvers.ida._atol_vector``): 4,152 evaluations
 
 
@@ -115,7 +118,7 @@ def _explore(fn):
 
 def _electric(rng):
     # rotational sources only: the machines and loops are rotational, and a Force on a free Mass drew the
-    # campaign's known range-accuracy shortfall (a speed varying little about a large value; seed 160 of
+    # fuzz runs' known range-accuracy shortfall (a speed varying little about a large value; seed 160 of
     # benchmarks/results/fuzz.md), which has nothing to do with these families
     _check(rng, "electric", require=[rng.choice(["dc_motor", "electric_motor", "pi_control"])],
            sources=["torque", "speed", "position"])

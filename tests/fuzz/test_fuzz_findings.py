@@ -1,5 +1,5 @@
-"""Findings of the fuzz campaign (``benchmarks/fuzz.py``), each as a named regression test on a
-small model reduced from the campaign's reproducer (seed in the docstring).
+"""Findings of the fuzz runs (``benchmarks/fuzz.py``), each as a named regression test on a
+small model reduced from the run's reproducer (seed in the docstring).
 
 Tests of findings that are still open are marked ``xfail(strict=True)``: they fail today and
 their fix turns them into an unexpected pass, at which point the mark goes.
@@ -12,12 +12,15 @@ import numpy as np
 import pytest
 
 import regmech as rm
-from regmech.bench.fuzz import FAMILIES_BEFORE_17, FAMILIES_BEFORE_S9, energy_checks
+from regmech.bench.fuzz import FAMILIES_BASIC, FAMILIES_NO_IMPACTS, energy_checks
 from regmech.bench.metrics import sample
 from regmech.components import (Clutch, Differential, FrictionContact, Inertia, LimitedSlipDifferential, LossyGear,
                                  Planetary, Position, Shaft, Speed, SpringDamper, Torque)
 from regmech.signals import Ramp, Sine, Step, Table
 from regmech.solvers.common import output_grid
+
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
 
 
 def _lossy_gear_model(table, w0):
@@ -197,8 +200,8 @@ def test_dop853_contract_on_a_late_slip_reversal():
     reversal, where |w_rel| puts a kink in the steep friction table. The accuracy contract compares the pair's
     states and event times, which agree, and returned an estimate of 2.2e-7 for an error of 5.7e-4. Fixed by
     ``ode_driver._relocate``: the crossing is located again on steps that end at the located instant."""
-    from regmech.bench.fuzz import FAMILIES_BEFORE_17, contract_error, generate_seed
-    spec = generate_seed(84, families=FAMILIES_BEFORE_17)      # the model of seed 84 when it was found
+    from regmech.bench.fuzz import FAMILIES_BASIC, contract_error, generate_seed
+    spec = generate_seed(84, families=FAMILIES_BASIC)      # the model of seed 84 when it was found
     m = spec.build()
     ref = m.simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-10, atol=1e-12)
     res = m.simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", accuracy=1e-4)
@@ -348,7 +351,7 @@ def test_no_device_slides_against_its_acceleration_after_an_event(solver, rtol, 
     from regmech.bench.fuzz import generate_seed
     from regmech.hybrid.logic import ModeLogic
     from regmech.modes import BACKWARD, FORWARD
-    spec = generate_seed(37, families=FAMILIES_BEFORE_17)
+    spec = generate_seed(37, families=FAMILIES_BASIC)
     m = spec.build()
     bad = []
     settle = ModeLogic.settle
@@ -390,13 +393,13 @@ def test_a_motion_held_in_turn_breaks_away_the_same_way_on_every_solver():
     stuck or slid on with its kinetic torque was decided by the round-off sign of a_rel: RK45 and DOP853 took
     different paths from there (93 and 101 mode changes, 6.6 % of J1's range apart). At zero slip the relative
     acceleration now decides only beyond its round-off, and ``hybrid.logic.settle`` runs the logic to a fixed
-    point (campaign seed 10169). The outcome is the README's rule of holding in turn: the brake, the last
+    point (fuzz seed 10169). The outcome is the README's rule of holding in turn: the brake, the last
     holder, passed its capacity while the bearing acted with its kinetic torque at zero speed, so the motion
-    breaks away at once (bearing and brake Forward at t = 0.0364 s; the session-5 rule let the bearing stick
+    breaks away at once (bearing and brake Forward at t = 0.0364 s; the earlier single-pass rule let the bearing stick
     again with its static capacity and break away at 0.0368 s, an answer that a second pass of the logic at the
     same instant did not reproduce)."""
     from regmech.bench.fuzz import generate_seed
-    spec = generate_seed(102, families=FAMILIES_BEFORE_17)
+    spec = generate_seed(102, families=FAMILIES_BASIC)
     m = spec.build()
     runs = {solver: m.simulate(0.04, dt_out=spec.dt_out, solver=solver, rtol=1e-10)
             for solver in ("scipy:DOP853", "scipy:RK45")}
@@ -412,7 +415,7 @@ def test_a_motion_held_in_turn_breaks_away_the_same_way_on_every_solver():
 
 @pytest.mark.parametrize("rtol", [1e-6, 1e-8, 1e-10])
 def test_ida_locates_a_stick_after_a_friction_knee_inside_one_step(rtol):
-    """Seed 346 of the 500-model campaign: a clutch slides forward until it sticks; its friction falls by 66 %
+    """Seed 346 of the 500-model fuzz run: a clutch slides forward until it sticks; its friction falls by 66 %
     within |w_rel| < 0.1878 rad/s. Independent calculation (the two coordinates in pieces at the knee, rtol
     1e-13): it sticks at t = 0.0524623 s, as DOP853 and Radau find. Above the knee the model is linear and
     IDA's last step runs from |w_rel| = 0.237 to w_rel = -0.447 without sampling the knee; the root located
@@ -493,7 +496,7 @@ def _check_rolling_gears(monkeypatch, bad):
 
 @pytest.mark.parametrize("solver", ["scipy:DOP853", "ida"])
 def test_gear_side_is_decided_on_the_torques_of_its_own_pass(solver, monkeypatch):
-    """Seed 353 of the 500-model campaign: at t = 0.145393 s a clutch's slip reverses next to a backward-rolling
+    """Seed 353 of the 500-model fuzz run: at t = 0.145393 s a clutch's slip reverses next to a backward-rolling
     lossy gear (ratio -0.2738). In the mode logic's first pass the clutch broke away forward and, in the same
     pass, the gear's driving side was tested with the torques solved while the clutch was still stuck
     (tau_eta -17.1 N m): it flipped, and the flip was booked under the clutch's new mode, so the flip back on the
@@ -502,7 +505,7 @@ def test_gear_side_is_decided_on_the_torques_of_its_own_pass(solver, monkeypatch
     takes the law by the sign of tau_eta) and DOP853 parted by 6.5e-4 of the range of J5.w. Fixed in
     ``hybrid.logic.settle``: a gear's side is tested only in a pass whose torques belong to its modes."""
     from regmech.bench.fuzz import generate_seed
-    spec = generate_seed(353, families=FAMILIES_BEFORE_17)
+    spec = generate_seed(353, families=FAMILIES_BASIC)
     bad = []
     _check_rolling_gears(monkeypatch, bad)
     res = spec.build().simulate(0.16, dt_out=spec.dt_out, solver=solver, rtol=1e-10)
@@ -513,7 +516,7 @@ def test_gear_side_is_decided_on_the_torques_of_its_own_pass(solver, monkeypatch
 
 
 def test_gears_breaking_away_together_roll_with_their_accelerations(monkeypatch):
-    """Seed 454 of the 500-model campaign: at t = 0 a lossy planetary and a lossy gear (ratio -2.258) on one load
+    """Seed 454 of the 500-model fuzz run: at t = 0 a lossy planetary and a lossy gear (ratio -2.258) on one load
     path start at rest and both break away backward in the mode logic's first pass; under the planetary's
     backward law the gear then accelerates forward (4.16 rad/s^2) while rolling Backward. Its event function
     (mode * w) started at zero and fell, so it never fired: on every solver the gear supplied power (to 0.0103 W
@@ -521,7 +524,7 @@ def test_gears_breaking_away_together_roll_with_their_accelerations(monkeypatch)
     acceleration (seed 37) excluded the gears; it now covers them (and ``_check_sliding_sides`` refuses a
     rolling gear moving against its mode)."""
     from regmech.bench.fuzz import generate_seed
-    spec = generate_seed(454, families=FAMILIES_BEFORE_17)
+    spec = generate_seed(454, families=FAMILIES_BASIC)
     bad = []
     _check_rolling_gears(monkeypatch, bad)
     res = spec.build().simulate(0.05, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-10)
@@ -549,8 +552,8 @@ def test_speed_source_with_a_callable_reference_at_a_tight_tolerance():
     res = m.simulate(0.6314, dt_out=0.0015785, solver="ida", rtol=1e-10)
     assert res.stats.rhs_calls < 20_000
     exact = -0.4406 * np.exp(-res.t / 0.08126) / 0.08126
-    # the prescribed speed within what IDA promises for it (rtol |w| + atol: Newton's iteration stops there; since
-    # session 10 the forces no longer hold it to far below, measured 8.4e-10 against 1.9e-9)
+    # the prescribed speed within what IDA promises for it (rtol |w| + atol: Newton's iteration stops there; the
+    # forces no longer hold it to far below, measured 8.4e-10 against 1.9e-9)
     assert np.abs(res["J1.w"] - np.array([w_ref(t) for t in res.t])).max() < 1e-10 * 18.71 + 1e-12
     assert np.abs(res["J1.a"] - exact).max() < 1e-7 * np.abs(exact).max()
     # the bound holds for the derivative the residual uses
@@ -563,7 +566,7 @@ def test_speed_source_with_a_callable_reference_at_a_tight_tolerance():
 
 @pytest.mark.parametrize("grows", [False, True])
 def test_position_source_with_a_callable_reference_at_a_tight_tolerance(grows):
-    """Campaign seeds 60012 and 60000, the sequel of CI seed 2002 for positions:
+    """Fuzz seeds 60012 and 60000, the sequel of CI seed 2002 for positions:
 
     * 60012: a mass driven by a LinearPosition with a tanh reference (a callable). The speed it imposes comes
       from a finite difference with 2.9e-12 m/s of round-off at t = 0, where IDA asked that dummy speed for
@@ -787,8 +790,8 @@ def test_a_stuck_gear_at_the_edge_of_its_capacity_breaks_away_when_its_load_grow
         assert res["gbox1.gear2.mode"][j] != 0             # the unselected gear rolls with its idler
 
 
-def test_ida_reference_runs_of_campaign_60000_and_60009_agree_with_dop853():
-    """The session-9 campaign's first findings, as generated (spec.build()):
+def test_ida_reference_runs_of_fuzz_seeds_60000_and_60009_agree_with_dop853():
+    """The first findings of the fuzz run from seed 60000, as generated (spec.build()):
 
     * seed 60000: a Position servo drives the carrier of an ideal differential between J2 = 2.014 and
       J3 = 0.01519 kg m^2. The heavy wheel was the constraint's dummy: IDA at rtol 1e-8 took 222,043 steps (27 s)
@@ -798,7 +801,7 @@ def test_ida_reference_runs_of_campaign_60000_and_60009_agree_with_dop853():
     """
     from regmech.bench.fuzz import generate_seed
     for seed, names in ((60000, ("J2.phi", "J2.w", "J3.w")), (60009, ("J3.w", "J4.w", "M1.v"))):
-        spec = generate_seed(seed, families=FAMILIES_BEFORE_S9)
+        spec = generate_seed(seed, families=FAMILIES_NO_IMPACTS)
         ida = spec.build().simulate(spec.t_end, dt_out=spec.dt_out, solver="ida", rtol=1e-10)
         ref = spec.build().simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-11)
         assert ida.stats.steps < 20_000, (seed, ida.stats.steps)
@@ -807,14 +810,14 @@ def test_ida_reference_runs_of_campaign_60000_and_60009_agree_with_dop853():
 
 
 def test_heat_of_a_diverging_reintegration_is_not_a_foreign_exception():
-    """Campaign seed 60110 (a Stribeck clutch, bearing friction, a torque converter, a differential): reading
+    """Fuzz seed 60110 (a Stribeck clutch, bearing friction, a torque converter, a differential): reading
     ``bearing1.heat`` of the DOP853 run raised scipy's ``ValueError: array must not contain infs or NaNs``. The
     quadrature integrated an interval again in its modes; Radau's motion ran to inf and scipy's LU refused its
     matrix. A method failing there is now the next method's turn, and Simpson's value stands (with a
     RuntimeWarning) if none gets through."""
     import warnings
     from regmech.bench.fuzz import generate_seed
-    spec = generate_seed(60110, families=FAMILIES_BEFORE_S9)
+    spec = generate_seed(60110, families=FAMILIES_NO_IMPACTS)
     m = spec.build()
     res = m.simulate(spec.t_end, dt_out=spec.dt_out, solver="scipy:DOP853", rtol=1e-8)
     with warnings.catch_warnings():
@@ -825,18 +828,18 @@ def test_heat_of_a_diverging_reintegration_is_not_a_foreign_exception():
 
 
 def test_heat_quadrature_work_is_bounded_per_read():
-    """Campaign seed 60105 (two lossy gears, a brake, a tanh drive): reading ``brake1.heat`` integrated 65 output
-    intervals again at about 11,000 evaluations each, 97 s for a 0.13 s run (the campaign's child gave no verdict
+    """Fuzz seed 60105 (two lossy gears, a brake, a tanh drive): reading ``brake1.heat`` integrated 65 output
+    intervals again at about 11,000 evaluations each, 97 s for a 0.13 s run (the fuzz run's child gave no verdict
     in 420 s: a "hang"). The re-integrations of one read now share ``TOTAL_RHS_CALLS``; the intervals beyond keep
     Simpson's value, counted whole in the estimate, and a RuntimeWarning says so.
 
-    Session 23: the brake is Stuck in every row, and its heat flow was the solvers' residue of ``w_rel = 0`` times
+    The brake is Stuck in every row, and its heat flow was the solvers' residue of ``w_rel = 0`` times
     its holding torque, noise that no quadrature follows. A Stuck row's slip reads exactly 0 now: the brake's heat is
     0 at no work. The lossy gears' heat still takes the bound."""
     from regmech.bench.fuzz import generate_seed
     from regmech.modes import STUCK
     from regmech.solvers.quadrature import EXPLICIT_RHS_CALLS, MAX_RHS_CALLS, TOTAL_RHS_CALLS
-    spec = generate_seed(60105, families=FAMILIES_BEFORE_S9)
+    spec = generate_seed(60105, families=FAMILIES_NO_IMPACTS)
     res = spec.build().simulate(spec.t_end, dt_out=spec.dt_out, solver="ida", rtol=1e-8)
     assert np.all(res["brake1.mode"] == STUCK)
     heat, estimate = res.integral("brake1.heat_flow", error=True)
@@ -849,7 +852,7 @@ def test_heat_quadrature_work_is_bounded_per_read():
 
 
 def test_ida_on_two_wheels_of_one_hub_with_a_servo_and_a_sliding_clutch():
-    """CI seed 4004 (open from session 6 to 10): two Wheels of radii 0.41 and 0.134 m on one hub (rigid shafts
+    """CI seed 4004: two Wheels of radii 0.41 and 0.134 m on one hub (rigid shafts
     through J1), their axles on one mass moved by a LinearPosition with a Sine, and a mu-table clutch sliding
     against a free inertia. IDA at rtol 1e-8 took 181,710 step attempts (52 s) and its states were 6.6e-6 of
     their range off DOP853 at rtol 1e-11. Two causes:
@@ -879,7 +882,7 @@ def test_ida_on_two_wheels_of_one_hub_with_a_servo_and_a_sliding_clutch():
 
 
 def _random_calibration_seed_9():
-    """Seed 9 of the random calibration (``bench_calibration.py --random``), as generated in session 11."""
+    """Seed 9 of the random calibration (``bench_calibration.py --random``), as the generator drew it then."""
     from regmech.components import BearingFriction, Damper, Fixed, Mass, Spring, Stribeck, Wheel
     m = rm.Model("seed9")
     J1 = m.add(Inertia("J1", J=0.1371, w0=0.0, phi0=0.001192))
@@ -973,8 +976,8 @@ def test_ida_pair_whose_errors_cancel_is_not_taken_at_its_word():
     assert err <= res.stats.error_estimate <= 1e-4, (err, res.stats.error_estimate)
 
 
-def _campaign_seed_80041():
-    """Fuzz seed 80041 (session 11's campaign): a lossy gear that ends up held at zero speed."""
+def _fuzz_seed_80041():
+    """Fuzz seed 80041: a lossy gear that ends up held at zero speed."""
     from regmech.components import Brake, LimitedSlipDifferential, LossyPlanetary, OneWayClutch, ThermalMass
     m = rm.Model("seed80041")
     J1 = m.add(Inertia("J1", J=0.02882, w0=0.0))
@@ -1012,10 +1015,9 @@ def _campaign_seed_80041():
 def test_a_guard_crossing_at_round_off_without_mode_changes_stops_ida_and_auto_falls_back():
     """Fuzz seed 80041: a lossy gear held at zero speed crossed its event function at round-off 1,762 times in
     0.2 ms of simulated time (10 s of computing at rtol 1e-8, no mode changing), IDA restarting at each; the
-    default call ran past the campaign's 60 s. Now IDA stops after 200 such crossings naming the gear
-    (``ChatterGuard.record_silent``), and the default call falls back within the accuracy (to Radau until session
-    19, to dop853 since: DOP853 locates the gear's events on its own steps, as ida's message says)."""
-    m = _campaign_seed_80041()
+    default call ran past the fuzz run's 60 s limit. Now IDA stops after 200 such crossings naming the gear
+    (``ChatterGuard.record_silent``), and the default call falls back within the accuracy (to dop853: DOP853 locates the gear's events on its own steps, as ida's message says)."""
+    m = _fuzz_seed_80041()
     t_end, dt_out = 1.181, 0.0029525
     with pytest.raises(rm.ChatteringError, match="'lgear1' crossed zero"):
         m.simulate(t_end, dt_out, solver="ida", rtol=1e-8, timeout_s=60)
@@ -1027,8 +1029,8 @@ def test_a_guard_crossing_at_round_off_without_mode_changes_stops_ida_and_auto_f
     assert err <= 1e-3
 
 
-def _campaign_seed_80130():
-    """Fuzz seed 80130 (session 11's second campaign): among other parts, a 490 kg mass that starts inside a
+def _fuzz_seed_80130():
+    """Fuzz seed 80130: among other parts, a 490 kg mass that starts inside a
     stiff elastic gap moving out at 5.8 m/s and leaves it after 0.55 ms."""
     from regmech.components import Brake, ElastoGap, Fixed, Mass
     from regmech.signals import Pulse
@@ -1078,7 +1080,7 @@ def test_default_call_holds_the_tolerance_of_a_state_far_larger_than_its_motion(
     default call promised 1e-3 and was 5.4e-3 off. The tight rtol is now capped so that rtol |v| stays below half
     the accuracy in the contract's measure (``accuracy.MAGNITUDE_REACH``), and the cap is recorded."""
     from regmech.solvers.accuracy import compare_runs, result_state_labels
-    m = _campaign_seed_80130()
+    m = _fuzz_seed_80130()
     t_end, dt_out = 0.01, 0.0006106343283582089       # the contact is over at 0.55 ms; the error stays
     ref = m.simulate(t_end, dt_out, solver="scipy:DOP853", rtol=1e-11, atol=1e-13)
     res = m.simulate(t_end, dt_out)
@@ -1114,7 +1116,7 @@ def test_a_limited_dampers_saturation_is_located_so_errors_follow_the_tolerance(
 
 
 def test_an_impact_that_reverses_a_rolling_lossy_gear_rolls_it_the_other_way():
-    """Fuzz seed 80273 (session 13's campaign): a hard stop on a lossy gear's output flange throws it from
+    """Fuzz seed 80273: a hard stop on a lossy gear's output flange throws it from
     9.3 rad/s to -3.7 rad/s. The mode logic flipped the slip of a friction device reversed by an impact, but not
     a rolling gear's: every solver stopped with "'lgear1' would slide Forward with w_rel = -7.82, against its
     own direction ... a gap in regmech's mode logic". The gear now rolls the other way after the impulse."""
@@ -1147,7 +1149,7 @@ def test_an_impact_that_reverses_a_rolling_lossy_gear_rolls_it_the_other_way():
 
 
 def test_a_model_held_at_rest_is_not_stopped_as_diverged():
-    """Fuzz seed 80337 (session 13's campaign): a torque acting inside a locked limited-slip differential holds
+    """Fuzz seed 80337: a torque acting inside a locked limited-slip differential holds
     the model at rest; DOP853 at rtol 1e-10 saw the round-off of its speeds grow from 0 to 2.5e-17 rad/s, rough
     at every step, and stopped the run as diverged. Round-off at rest is no divergence (``divergence.QUIET``)."""
     m = rm.Model("seed80337")
@@ -1173,7 +1175,7 @@ def _range_error(res, ref, names, t_end, points=1000):
 
 
 def _two_lossy_gears_on_a_sine_driven_shaft():
-    """Calibration seed 5114 (``bench/calibration.py``, seed 5000 campaign), unchanged."""
+    """Calibration seed 5114 (``bench/calibration.py``, the random cases from seed 5000), unchanged."""
     m = rm.Model("r5114")
     J1 = m.add(Inertia("J1", J=6.399))
     J2 = m.add(Inertia("J2", J=2.516))
@@ -1573,8 +1575,8 @@ def test_a_motion_sources_work_at_an_impact_is_in_its_books(solver):
 def test_a_motion_sources_work_at_an_elastic_impact_is_booked_once(solver):
     """A Speed source holds J1 at 1 rad/s; J2 (3 rad/s) hits a stop (e = 0.5) on J1: J2 leaves at 1 - 0.5 * 2 = 0
     rad/s. Kinetic energy -4.5 J = the source's work -3 J (its impulse -3 N m s at 1 rad/s) - the stop's loss
-    (1 - e^2) * 2^2 / 2 = 1.5 J. The impact's trial projection booked the source's work too: -6 J (a helper's review
-    of the fix for seed 94074)."""
+    (1 - e^2) * 2^2 / 2 = 1.5 J. The impact's trial projection booked the source's work too: -6 J (found on
+    the fix for seed 94074)."""
     from regmech.components import HardStop, Speed
     m = rm.Model("elastic_stop_on_a_source")
     J1 = m.add(Inertia("J1", J=1.0))
@@ -1598,7 +1600,7 @@ def test_a_sources_work_at_an_impact_with_a_freewheel_is_not_heat(w4):
     J4 (stuck from the start, or free): the stop's heat must be that of the same model with the source replaced by an
     inertia of 1e9 kg m^2 turning at the source's speed (an independent model; there the freewheel locks within the
     impact, ``Impacts._book_lock_work``): 1.82 and 1.70 J. With the impact's trial projection booked too, the source's
-    work came out twice and the heat 10.08 J (a helper's review of the fix for seed 94074)."""
+    work came out twice and the heat 10.08 J (found on the fix for seed 94074)."""
     from regmech.components import HardStop, OneWayClutch, Planetary, Speed
 
     def model(source):
@@ -1625,7 +1627,7 @@ def test_a_sources_work_at_an_impact_with_a_freewheel_is_not_heat(w4):
 
 
 def test_dop853s_cap_on_an_end_stops_contacts_keeps_its_accuracy():
-    """Fuzz seed 95096 (helper's campaign from seed 95000), the first 0.3 s: an end stop's 5.7 ms contacts raise the
+    """Fuzz seed 95096 (the fuzz run from seed 95000), the first 0.3 s: an end stop's 5.7 ms contacts raise the
     spectral radius from 9 to 535-757 1/s. With the cap taken again at every contact change, DOP853 at rtol 1e-10
     came out 1.3e-6 of J1.w's range off (1.1e-7 with the start's cap); taken again on friction-mode changes and every
     ``RECAP_STEPS`` steps (``scipy_ivp._dynamics_key``), 1.1e-8, or 1.1e-7 in a process that has imported numba

@@ -8,6 +8,9 @@ import pytest
 
 from hard_helpers import assert_passes, outcome
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("key, solver", [
     ("torque_steps", "ida"), ("torque_steps", "scipy:RK45"), ("torque_steps", "expm"),

@@ -21,6 +21,9 @@ import regmech as rm
 from regmech.components import Inertia, Mass, RoadLoad, Torque
 from regmech.signals import Sine
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 M, F_ROLL, C_DRAG, GRADE, V_EPS, G = 0.7467, 150.4, 1.94, -0.08292, 0.03145, 9.81
 T_END = 0.3653
 

@@ -9,7 +9,8 @@ import pytest
 from hard_helpers import assert_passes, outcome
 
 # round-off-sensitive: .ci/run runs these again under other OpenBLAS kernels (see the README)
-pytestmark = pytest.mark.roundoff
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = [pytest.mark.roundoff, pytest.mark.slow]
 
 
 @pytest.mark.parametrize("key, solver", [

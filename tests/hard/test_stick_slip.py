@@ -9,6 +9,9 @@ import pytest
 
 from hard_helpers import assert_passes, outcome
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("key, solver", [
     ("belt_limit_cycle", "ida"), ("belt_limit_cycle", "scipy:RK45"), ("belt_limit_cycle", "scipy:DOP853"),

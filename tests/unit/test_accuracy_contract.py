@@ -321,6 +321,7 @@ class _UnlocatedBacklash(Backlash):
         return []
 
 
+@pytest.mark.slow
 def test_richardson_checks_the_order_it_relies_on(monkeypatch):
     """rk4 on the excavator with its backlash kinks stepped across (as before contacts were located) at
     h = 2 ms: the estimate against 2h (9.5e-7) passed tol 1e-6 only through the division by 2^4 - 1, while
@@ -332,6 +333,7 @@ def test_richardson_checks_the_order_it_relies_on(monkeypatch):
     assert info.value.suggested_h is not None and info.value.suggested_h < 2e-3
 
 
+@pytest.mark.slow
 def test_rk4_keeps_its_order_across_located_contacts():
     """The same run with the contacts located (steps end at them): the crossing is located on steps that end at
     it (``ode_driver._fixed_step_crossing``), not on the interpolant of the step that sampled the law past it, so
@@ -512,7 +514,7 @@ def test_a_rebound_series_counted_differently_is_one_change():
 
 
 def test_a_servo_rattling_in_a_hard_stop_meets_the_contract():
-    # a helper's fuzz, seed 90076 reduced: every pair of ida's runs counted the rebounds differently and the default
+    # a fuzz run, seed 90076 reduced: every pair of ida's runs counted the rebounds differently and the default
     # call was refused (ChatteringError after the Radau fallback); the motion agrees
     from regmech.components import HardStop, Position
     m = rm.Model("bounce")

@@ -137,6 +137,7 @@ def sine_driven_chain(n, freq_hz=5.0):
     return m
 
 
+@pytest.mark.slow
 def test_a_large_linear_model_goes_to_expm_only_where_its_steps_repay_them():
     # regression: rule 3 sent every linear model above MODAL_MAX coordinates to expm at accuracy <= 1e-4, also
     # the 100-inertia chain driven at 5 Hz at 1e-6, where the forcing needs thousands of expm steps against a
@@ -215,6 +216,7 @@ def test_rule_3_with_native_ida_weighs_its_cheap_steps():
     assert auto.native_size_weight(200) < 0.2 < 3.5 < auto.native_size_weight(2000) < 10.0
 
 
+@pytest.mark.slow
 def test_auto_falls_back_to_radau_when_expm_and_ida_meet_their_round_off_floor():
     """inertia_ratio_1e8 at accuracy 1e-6: expm's a-priori round-off bound (8.9e-7 against a/3) and ida's
     rtol floor (2.2e-9 for its 3e4 link spread) refuse it; auto used to stop there, although Radau meets it."""
@@ -245,6 +247,7 @@ def damped_chain(n, d):
     return benchmark_chain(n, d=d)
 
 
+@pytest.mark.slow
 def test_the_split_bound_of_a_chain_is_its_top_frequency_and_its_damping():
     """``spectral_split`` on the benchmark chain (J about 1, c = 1e4, d): oscillation about 2 sqrt(c / J) = 200
     1/s, damping about 2 d / J, and their sum the spectral bound."""
@@ -306,6 +309,7 @@ def test_rule_e_steps_aside_for_damped_small_frictional_or_long_runs():
     assert tr.spectrum is None and not _explicit_first(tr, 1e-3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
 def test_the_default_call_on_a_large_chain_keeps_its_promise(accuracy):
     """auto's dop853 under the contract against the exact flow (expm at a tight accuracy, its Richardson estimate
@@ -383,7 +387,7 @@ def test_a_fallback_that_cannot_take_the_options_says_why_the_first_choice_refus
 def test_rule_e_prime_runs_expm_first_where_its_steps_are_fewer_on_a_fine_grid():
     """A stiff lightly damped chain (links of 1e6 N m/rad: rho about 2000 1/s) driven by a step at accuracy 1e-6:
     DOP853's cap takes about 2,700 steps for the pair against expm's 1,000 output steps at dt_out 1e-3 (the fuzz
-    campaign's cells of that kind: expm 1.1-8.5x faster), so expm runs first and dop853 next; at dt_out 1e-2 expm's
+    models' cells of that kind: expm 1.1-8.5x faster), so expm runs first and dop853 next; at dt_out 1e-2 expm's
     first step would be 20 times the fastest time scale (its first run refused and retried at a tiny step on the
     random trees), and at 2,000 states an expm step costs more: dop853 first."""
     from regmech.bench.hard_models import benchmark_chain
@@ -422,7 +426,7 @@ def _stiff_random_chain(n, seed, d_scale):
 
 
 def test_rule3_counts_ringing_modes_above_the_output_grid():
-    # session 19's fuzz: rule 3 capped the periods a stepping method must resolve at the output grid's Nyquist
+    # found by fuzzing: rule 3 capped the periods a stepping method must resolve at the output grid's Nyquist
     # frequency and chose ida, which resolved the lightly damped kHz modes of the stiff links for 2 s where expm
     # took 0.06 s (a chain of 117 inertias). Ringing on top (damping <= EXPLICIT_DAMPING x oscillation) and a
     # stiff spread lift the cap

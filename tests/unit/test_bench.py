@@ -212,6 +212,7 @@ def test_report_ratios_against_the_best_scipy_method():
     assert ida[1e-2][1] == pytest.approx(0.25) and ida[1e-6][1] == pytest.approx(0.15)
 
 
+@pytest.mark.slow
 def test_cli_quick_run_writes_csv_markdown_and_plot(tmp_path, capsys):
     from regmech.bench.cli import main
     out = tmp_path / "out"

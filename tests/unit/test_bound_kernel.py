@@ -1,4 +1,4 @@
-"""The compiled spectral bound (``solvers._bound_kernel``, issue 15: the explicit methods' up-front check)
+"""The compiled spectral bound (``solvers._bound_kernel``: the explicit methods' up-front check)
 gives the numpy path's bound to the last bit, so DOP853's step cap, which it sets, is the same; it is the
 path a run with a compiled right-hand side takes."""
 

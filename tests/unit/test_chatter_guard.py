@@ -15,7 +15,7 @@ def _guard(solver):
 
 
 def test_a_chattering_hard_stop_is_not_told_about_friction():
-    # a helper's fuzz (seed 90076): a HardStop was called a friction device and told to use peak > 1, which it has not
+    # a fuzz run (seed 90076): a HardStop was called a friction device and told to use peak > 1, which it has not
     with pytest.raises(ChatteringError) as err:
         g = _guard("ida")
         for k in range(5):

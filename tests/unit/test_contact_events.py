@@ -148,6 +148,7 @@ def _rattle():
     return m
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dt_out", [1e-3, 1e-2])
 @pytest.mark.parametrize("solver", ["ida", "scipy:DOP853"])
 def test_energy_books_of_a_rattling_backlash_close(solver, dt_out):

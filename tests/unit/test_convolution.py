@@ -1,4 +1,4 @@
-"""The convolution method (SOURCES.md 004): its coefficients, limits, exactness and behaviour on models."""
+"""The convolution method (REFERENCES.md [004]): its coefficients, limits, exactness and behaviour on models."""
 
 import warnings
 

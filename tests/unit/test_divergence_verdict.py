@@ -53,6 +53,7 @@ def test_a_growing_oscillation_beyond_rk4s_limit_is_still_stopped_as_rough():
     assert "diverged" in msg and "while changing at every step by more than 0.5 times its size" in msg
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["scipy:DOP853", "dop853"])
 @pytest.mark.parametrize("rtol", [3e-4, 1e-4])
 def test_a_resolved_beating_oscillation_is_not_stopped_as_diverged(solver, rtol):
@@ -76,7 +77,7 @@ def test_only_a_methods_own_factor_may_overrule_the_verdict():
 
 def test_a_nonlinear_models_jacobian_is_taken_again_once_the_run_has_moved_on(monkeypatch):
     # the verdict at t judges the window of the last ROUGH_STEPS steps: a nonlinear model's dg/du older than that
-    # window is not used (fuzz campaign, session 17: a verdict reused a Jacobian from far earlier in the run)
+    # window is not used (found by fuzzing: a verdict reused a Jacobian from far earlier in the run)
     from regmech.components import QuadraticSpeedDependentTorque
     from regmech.solvers import ode_driver as od
     m = _stiff_pair(0.5)
@@ -109,6 +110,7 @@ def _stepped_pair(start):
     return _pair("stepped_pair", Step(height=10.0, start_time=start), 1e-2, (1e5, 1e-3), 100.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("start", [0.0, 0.1234])
 def test_exact_flow_is_never_judged_rough(start):
     # read every millisecond, the 503 Hz mode changes completely from one output step to the next while the step

@@ -1,4 +1,4 @@
-"""regmech's own Dormand-Prince integrators (``solvers.dopri``: ``dopri5``, ``dop853``, issue 15) take scipy's steps
+"""regmech's own Dormand-Prince integrators (``solvers.dopri``: ``dopri5``, ``dop853``) take scipy's steps
 and give scipy's values up to round-off, compiled or not; their dense output, refusals and accuracy contract."""
 
 import math
@@ -66,6 +66,7 @@ def path(request, monkeypatch):
     return request.param
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ours, theirs", PAIRS, ids=["dopri5", "dop853"])
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
 @pytest.mark.parametrize("rtol", [1e-4, 1e-8])
@@ -301,8 +302,7 @@ def test_the_compiled_passes_leave_out_terms_of_zero_weight_and_keep_the_sums():
 @pytest.mark.parametrize("cls", [dopri.Dop853, dopri.Dopri5], ids=["dop853", "dopri5"])
 def test_a_non_finite_rate_at_the_step_end_rejects_the_step(cls, path):
     """DOP853's error weights give the step end's rate ``f_new`` none, and the compiled sums leave out terms of zero
-    weight: a NaN there kept the norm finite and the step was taken, its NaN the next step's first stage (the review
-    of session 23). Now the step is rejected and shrunk, as for any non-finite stage."""
+    weight: a NaN there kept the norm finite and the step was taken, its NaN the next step's first stage. Now the step is rejected and shrunk, as for any non-finite stage."""
     s = cls(spring_chain(3), 0.0, np.r_[0.01, 0.0, 0.0, 0.0, 0.0, 0.0], 1.0, rtol=1e-6, atol=1e-8)
     real, calls = s._eval, []
 

@@ -87,6 +87,7 @@ def test_a_massless_point_is_drawn_not_refused():
     assert "massless\npoint" in _texts(fig)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", sorted(SCENES))
 def test_every_library_scene_draws(scene, tmp_path):
     m = _build(scene)

@@ -1,4 +1,4 @@
-"""The step-doubling matrix exponential integrator (solver "expm", SOURCES.md 002).
+"""The step-doubling matrix exponential integrator (solver "expm", REFERENCES.md [002]).
 
 What is checked:
 
@@ -339,8 +339,9 @@ def test_a_sine_that_starts_inside_the_run_is_exact_from_its_start():
     assert off(r, ref, names) <= 1e-10
 
 
+@pytest.mark.slow
 def test_sine_near_resonance_is_exact_where_the_fit_rang():
-    # session 19: the fit's ripple at the step rate excites a lightly damped mode near that rate (here 650 Hz, damping
+    # the fit's ripple at the step rate excites a lightly damped mode near that rate (here 650 Hz, damping
     # ratio 1e-3) and the companion run at 2h rings alike: at 6 and 7 steps per 10 ms the error was 14-23 times the
     # estimate. With the particular solution both runs are exact and the estimate is a bound
     w1 = 2 * math.pi * 650.0
@@ -461,6 +462,7 @@ def test_coupled_clutches_events_and_speeds_against_ida():
         assert np.max(np.abs(np.interp(ref.t, res.t, res[nm]) - ref[nm])) <= 1e-6, nm
 
 
+@pytest.mark.slow
 def test_one_way_clutch_against_dymola_including_the_grazing_lock(reference_dir):
     # at t = 1.5 the relative speed touches zero tangentially; Dymola's reference locks there and
     # releases at 1.50000159 s (duplicated time rows); on the exact flow expm finds the same touch
@@ -564,7 +566,7 @@ def test_roundoff_check_on_a_stretched_spectrum():
 
 
 def test_only_a_library_source_of_a_sine_is_taken_as_one():
-    # review of session 19: a sampled test took a user's smooth function with a narrow bump between its samples for
+    # a sampled test took a user's smooth function with a narrow bump between its samples for
     # a constant once the model held a Sine elsewhere, and dropped the bump (0.14 of the range off, estimate 3e-14).
     # Now only a Torque/Force of a Sine is taken exactly; the function keeps the fit and its estimate sees the bump
     J, c = np.array([1.0, 1.0, 1.0]), np.array([1e2, 1e2, 1e2])
@@ -583,7 +585,7 @@ def test_only_a_library_source_of_a_sine_is_taken_as_one():
 
 
 def test_tiny_sines_that_start_apart_are_not_confused():
-    # review of session 19: the particular solutions were cached under amplitudes rounded to 1e-12, so that on a
+    # the particular solutions were cached under amplitudes rounded to 1e-12, so that on a
     # model scaled by 1e-13 a sine starting at 0.5 s reused the solution of the segment before it (0.26 off)
     sc = 1e-13
     m = rm.Model("nano")
@@ -605,8 +607,9 @@ def test_tiny_sines_that_start_apart_are_not_confused():
     assert off(r, ref, names) <= 1e-9
 
 
+@pytest.mark.slow
 def test_sines_through_clutch_events_meet_tight_accuracies():
-    # review of session 19: each stepper restarted at a located clutch event decided anew whether its (short) span
+    # each stepper restarted at a located clutch event decided anew whether its (short) span
     # showed a sine, so the runs at h, 2h and 4h mixed exact and fitted spans and the contract refused 1e-5 to 1e-9
     from regmech.components import Clutch
     m = rm.Model("clutched")
@@ -633,7 +636,7 @@ def test_sines_through_clutch_events_meet_tight_accuracies():
 
 
 def test_the_sparse_path_drops_nothing_its_estimate_cannot_see():
-    # review of session 19: on a random stiff chain of 60 inertias (the sparse path) the entries dropped below 1e-17
+    # on a random stiff chain of 60 inertias (the sparse path) the entries dropped below 1e-17
     # left 4.4e-9 of the range of the angles, which both Richardson runs shared: the estimate said 1.6e-9. The
     # default drop tolerance is 1e-20 now (about 1e-11 there) and the companions drop 1000 times less
     rng = np.random.default_rng(7)

@@ -25,7 +25,7 @@ def _one(dev):
 @pytest.mark.parametrize("dev", [
     Backlash("bl", c=2487.0, b=1e-3, phi_rel0=0.8255),                    # was taken for a linear spring
     ElastoBacklash("bl", c=2487.0, d=0.035, b=1e-3, phi_rel0=0.8255),
-    EndStop("stop", lower=-0.8261, upper=-0.825, c=2487.0, d=0.035),      # a fuzz model (issue 17 families)
+    EndStop("stop", lower=-0.8261, upper=-0.825, c=2487.0, d=0.035),      # a fuzz model (drivetrain families)
 ], ids=lambda d: type(d).__name__)
 def test_a_narrow_kink_away_from_zero_is_nonlinear(dev):
     m = _one(dev)

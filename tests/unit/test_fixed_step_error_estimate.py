@@ -116,6 +116,7 @@ def test_tol_none_skips_the_companion_and_the_companion_leaves_the_result_alone(
         np.testing.assert_array_equal(checked[name], bare[name])
 
 
+@pytest.mark.slow
 def test_stick_slip_scene_at_a_sensible_step_is_not_refused_and_not_changed():
     from regmech.library import coupled_clutches
     m = coupled_clutches()
@@ -168,6 +169,7 @@ def test_a_companion_that_diverges_falls_back_to_half_steps():
     assert ok.stats.extra["error_companion"].startswith("h/2") and ok.stats.error_estimate == pytest.approx(est, rel=0.1)
 
 
+@pytest.mark.slow
 def test_a_2h_estimate_outside_the_asymptotic_range_is_checked_at_h_over_2():
     # abm on the vehicle launch at h = 1e-3: the run at 2h puts the tyre's contact mode near abm's
     # stability limit and over-estimates (0.013) an error that is 2.2e-4; the run at h/2 decides
@@ -194,6 +196,7 @@ def test_expm_round_off_floor_is_refused_up_front_naming_the_stiff_link():
     assert res.stats.error_estimate >= res.stats.extra["error_floor"] > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [1e4, 1e6, 1e7])
 def test_expm_round_off_bound_covers_the_error_against_a_30_digit_answer(ratio):
     # the a-priori bound must lie above the true error at any step (measured 0.08..0.23 of it); the error is
@@ -267,6 +270,7 @@ def test_a_long_horizon_at_a_coarse_step_asks_for_a_much_smaller_step_not_anothe
     assert "a smaller step will not help" not in msg
 
 
+@pytest.mark.slow
 def test_the_half_step_check_is_skipped_on_long_runs(monkeypatch):
     # beyond HALF_STEP_MAX_STEPS main steps the 2h estimate decides alone (the h/2 run would cost twice
     # the main run): the same abm run as above is then refused on its 2h estimate

@@ -1,4 +1,4 @@
-"""IDA's absolute tolerances follow the size of the motion (issue 13, item 5).
+"""IDA's absolute tolerances follow the size of the motion.
 
 The defect: IDA weighs each unknown by ``rtol |y| + atol`` with the plain
 ``atol = rtol * 1e-2``. On a translational chain whose motion is small

@@ -1,7 +1,6 @@
 """Bad signals and parameters give a regmech error that names the component, the signal and the time.
 
-Regression tests of the reliability campaign (issue 13, items 2, 3, 6 and the signal parts of 9
-and 10): non-finite or out-of-range signal values, callables that raise or take the wrong
+Regression tests: non-finite or out-of-range signal values, callables that raise or take the wrong
 arguments, parameter tables edited in place, too many time events, prescribed motions that would
 need an impulse.
 """
@@ -28,7 +27,7 @@ def _at(message):
     return float(found.group(1))
 
 
-# ----------------------------------------------------------------- non-finite signal values (item 2)
+# ----------------------------------------------------------------- non-finite signal values
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_nan_normal_force_is_an_error_not_disengaged(solver):
     m = coupled_clutches()
@@ -158,7 +157,7 @@ def test_negative_normal_force_disengages_like_zero():
             np.testing.assert_allclose(np.interp(runs[0].t, res.t, res[name]), runs[0][name], rtol=0, atol=1e-6)
 
 
-# ------------------------------------------------------------------ callables (items 9 and 10)
+# ------------------------------------------------------------------ callables
 def test_a_callable_that_raises_is_named_with_the_time_of_the_call():
     calls = []
 
@@ -229,7 +228,7 @@ def test_rebinding_keeps_the_callable_and_names_the_new_owner():
         free.value(1.0)
 
 
-# ---------------------------------------------------------------- read-only tables (item 3)
+# ---------------------------------------------------------------- read-only tables
 def test_a_validated_table_cannot_be_edited_in_place():
     m = coupled_clutches()
     m["clutch1"].mu_table = [[0.0, 0.5], [10.0, 0.4]]
@@ -321,7 +320,7 @@ def test_a_loss_table_assigned_after_construction_is_used():
     np.testing.assert_allclose(run([[0.0, 1.0, 1.0, 0.0, 0.0]], lossy), run(lossy, None), rtol=1e-9)
 
 
-# ----------------------------------------------------------------- time events (item 6)
+# ----------------------------------------------------------------- time events
 def _pulsed(pulse):
     m = rm.Model("pulsed")
     drive = m.add(Torque("drive", tau=pulse))

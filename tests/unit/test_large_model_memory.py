@@ -1,4 +1,4 @@
-"""Large models stay cheap where they can (issue 15, the 100,000-inertia chain): named outputs are made
+"""Large models stay cheap where they can (the 100,000-inertia chain): named outputs are made
 per signal when read (a Result holds O(unknowns x points), never O(components x signals x points)), the
 networkx graph of a model is made only when asked for, the output rows are not held twice, and the
 shortcuts taken for speed (cached parameter declarations, flanges as attributes) keep the behaviour.

@@ -1,4 +1,4 @@
-"""The layers of DESIGN.md ("The way through the house"), checked on the source's imports.
+"""The layers of the package, checked on the source's imports.
 
     components -> Model -> structure/ -> compile/ -> hybrid/ -> solvers/ -> analysis/, bench/, cli, ...
 
@@ -20,7 +20,7 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "regmech"
 
-#: DESIGN.md's order, top (imported by the others) first; a unit is a subpackage or a top-level module
+#: the layers' order, top (imported by the others) first; a unit is a subpackage or a top-level module
 LAYERS = [
     {"components"},
     {"model"},
@@ -31,7 +31,7 @@ LAYERS = [
     {"analysis", "bench", "study", "cli", "scene", "sweep", "library", "draw", "docgen", "__root__"},
 ]
 CORE = {"errors", "_numbers", "ports", "modes", "units", "signals", "component", "result", "report", "io",
-        "plotting"}
+        "plotting", "data"}
 NEVER_COMPONENTS = {"compile", "hybrid", "solvers"}
 RANK = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
 
@@ -90,7 +90,7 @@ def violations(source: str, module: str, is_package: bool = False) -> list[str]:
         elif own in NEVER_COMPONENTS and dep == "components":
             bad.append(f"{where}: {own}/ never imports a component module (the hybrid layer holds the mode logic)")
         elif own in RANK and dep in RANK and RANK[dep] > RANK[own]:
-            bad.append(f"{where}: {own} imports {dep}, a layer below it in DESIGN.md")
+            bad.append(f"{where}: {own} imports {dep}, a layer below it")
         elif own in RANK and dep not in RANK:
             bad.append(f"{where}: {dep} is in no layer of this test; place it in LAYERS or CORE")
     return bad
@@ -114,7 +114,7 @@ def test_imports_follow_the_layers():
     bad = []
     for path, module, is_package in source_modules():
         bad += violations(path.read_text(encoding="utf-8"), module, is_package)
-    assert not bad, "imports against the layers of DESIGN.md:\n" + "\n".join(bad)
+    assert not bad, "imports against the layers:\n" + "\n".join(bad)
 
 
 @pytest.mark.parametrize("module, source, broken", [

@@ -1,4 +1,4 @@
-"""Linearising where the run is (issue 16): ``m.linearize(at=res, t=T)`` takes the state and the friction
+"""Linearising where the run is: ``m.linearize(at=res, t=T)`` takes the state and the friction
 modes of the run at T; the scene's start values do not get in the way; ``regmech modes SCENE --t T``."""
 
 import numpy as np

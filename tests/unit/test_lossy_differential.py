@@ -1,4 +1,4 @@
-"""LossyDifferential (issue 17, item 9): the final drive's mesh efficiency by power-flow direction."""
+"""LossyDifferential: the final drive's mesh efficiency by power-flow direction."""
 
 import numpy as np
 import pytest

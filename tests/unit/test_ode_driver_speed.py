@@ -1,4 +1,4 @@
-"""The ODE-form driver's vectorised per-step work gives what the per-item work gave (issue 15, speed)."""
+"""The ODE-form driver's vectorised per-step work gives what the per-item work gave (speed)."""
 
 import numpy as np
 import pytest

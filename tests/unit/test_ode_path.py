@@ -1,4 +1,4 @@
-"""The ODE-form path's fast pieces (issue 15): the linear form of ``compile.odeform``, the spectral bound
+"""The ODE-form path's fast pieces: the linear form of ``compile.odeform``, the spectral bound
 of the explicit methods' up-front stiffness check, the signal list kept with the compiled model."""
 
 import numpy as np
@@ -94,6 +94,7 @@ def _models():
             "stretched_1e5": stretched_chain(1e5)[0].to_model(stretched_chain(1e5)[1])}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["chain30", "chain300", "train_100", "first", "excavator", "gear_shift",
                                   "stretched_1e5"])
 def test_spectral_bound_is_an_upper_bound(name):

@@ -1,4 +1,4 @@
-"""The compiled right-hand side of the linear ODE form (``compile._odeform_kernels``, issue 15) gives the
+"""The compiled right-hand side of the linear ODE form (``compile._odeform_kernels``) gives the
 Python form's numbers to the last bit, on every kind of matrix it takes (DIA, CSR, compact and general
 input matrices, constant offsets, device states), and is not taken where it could not."""
 

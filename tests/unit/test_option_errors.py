@@ -1,5 +1,5 @@
 """Solver options, times and result look-ups: every bad input is a regmech error that names the argument
-and the fix (issue 13, items 9 and 10), checked once for all solvers (regmech.solvers.options)."""
+and the fix, checked once for all solvers (regmech.solvers.options)."""
 
 import inspect
 

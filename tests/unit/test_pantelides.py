@@ -33,7 +33,7 @@ def test_structural_matching_reports_unmatched():
     assert len(un_eq) == 1 and un_var == []
 
 
-# -- long rigid chains: iterative graph walks, linear cost (issue 13, item 8) --------------------
+# -- long rigid chains: iterative graph walks, linear cost --------------------
 import sys
 from contextlib import contextmanager
 
@@ -149,6 +149,7 @@ def rigid_chain(n, kind, J=1e-3, tau=2.0, w0=1.0):
     return m, np.array(speed)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["shaft", "gear"])
 def test_ten_thousand_rigid_links_build_compile_and_simulate(kind):
     """10,000 rigid links: one lumped inertia ``J_eff = sum J_k (w_k/w_0)^2`` driven by the torque,
@@ -166,6 +167,7 @@ def test_ten_thousand_rigid_links_build_compile_and_simulate(kind):
         assert np.allclose(res[f"J{k}.phi"], speed[k] * phi_exact, rtol=1e-6, atol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", ["as given", "reversed", "shuffled"])
 def test_pantelides_work_per_link_stays_flat_from_1000_to_10000_links(order):
     """The search touches a bounded neighbourhood per link, whatever the order of the variables:
@@ -194,6 +196,7 @@ def test_pantelides_work_per_link_stays_flat_from_1000_to_10000_links(order):
     assert per_link[10000] < 1.2 * per_link[1000]
 
 
+@pytest.mark.slow
 def test_scene_merges_ten_thousand_rigid_shafts_into_one_body():
     """Scene reduction and node building at scale: ``merge_rigid`` joins the 10,001 masses of a
     rigid Shaft chain into one point (node building scanned a list of the bodies already on a

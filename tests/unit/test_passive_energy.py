@@ -103,7 +103,7 @@ def test_a_damping_matrix_that_is_not_semidefinite_is_no_passive_model():
 
 
 def spun_chain(spin):
-    """A free 4-inertia chain of springs (a helper's fuzz model), every inertia spun by ``spin`` rad/s more."""
+    """A free 4-inertia chain of springs (a random fuzz model), every inertia spun by ``spin`` rad/s more."""
     m = rm.Model("spun")
     values = [(0.0486, 0.0, 0.0), (9.58, -0.00878, 10.22), (1.328, 0.0, -2.463), (18.40, -0.01294, -2.115)]
     J = [m.add(Inertia(f"J{i}", J=j, phi0=p, w0=w + spin)) for i, (j, p, w) in enumerate(values)]

@@ -1,4 +1,4 @@
-"""The benchmark peers (``benchmarks/peers``, issue 15) are correct models of what they stand for.
+"""The benchmark peers (``benchmarks/peers``) are correct models of what they stand for.
 
 Each hand-written model must agree with regmech and, where there is one, with
 the MSL reference, on a short run; nothing is timed here. Tolerances are the

@@ -1,5 +1,5 @@
 """``res.save(path)`` / ``regmech.load_result(path)``: a MATLAB .mat file that keeps every signal, its unit,
-the events and the statistics, readable with plain scipy (issue 16, persistence)."""
+the events and the statistics, readable with plain scipy (persistence)."""
 
 import pickle
 
@@ -31,6 +31,7 @@ def _assert_same(a, b):
     assert str(b.stats) == str(a.stats)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_round_trip_of_every_library_scene(name, tmp_path):
     res = _run(name)

@@ -20,6 +20,9 @@ import pytest
 from regmech.library import SCENES
 from regmech.library.msl import lossy_gear_demo
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 ALL_SCENES = {**SCENES, "lossy_gear_demo": lossy_gear_demo}
 #: end times: long enough for the scenes' events (clutch engagements, gear shifts, stick/slip), short for CI
 T_END = {"first": 1.0, "coupled_clutches": 1.5, "one_way_clutch": 2.0, "vehicle_launch": 1.5,

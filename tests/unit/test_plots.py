@@ -96,6 +96,7 @@ def test_simultaneous_events_share_one_label(launch, tmp_path):
     assert "wheel_left.road_contact, wheel_right.road_contact: Stuck -> Forward" in listed
 
 
+@pytest.mark.slow
 def test_log_axis_says_which_signals_cannot_be_drawn(launch, tmp_path):
     fig = launch.plot(["body.v", "flywheel.w", "clutch.tau"], logy=True, modes=False, path=tmp_path / "g.png")
     entries = [e for a in fig.axes for e in _legend(a)]
@@ -194,6 +195,7 @@ def test_campbell_crossings_and_plot(first_lin, tmp_path):
         campbell([10.0], [1.0], (3000.0, 100.0))
 
 
+@pytest.mark.slow
 def test_modes_cli_writes_labelled_plots_and_campbell(tmp_path, capsys):
     from regmech.analysis.cli import modes_main
     assert modes_main(["first", "--out", str(tmp_path), "--orders", "1,2", "--speed", "100:2000"]) == 0

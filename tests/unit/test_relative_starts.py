@@ -1,4 +1,4 @@
-"""Start values on devices (issue 17, item 8): ``phi_rel_start`` / ``w_rel_start`` fix a device's own
+"""Start values on devices: ``phi_rel_start`` / ``w_rel_start`` fix a device's own
 coordinate at the start, as MSL's ``phi_rel(start=..., fixed=true)``; contradictions name the device."""
 
 import inspect

@@ -1,4 +1,4 @@
-"""Scenes and model reduction (issue 8)."""
+"""Scenes and model reduction."""
 
 import numpy as np
 import pytest

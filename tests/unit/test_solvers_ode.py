@@ -75,6 +75,7 @@ def first_reference():
 FIRST_SIGNALS = ["inertia1.w", "inertia2.w", "inertia3.w", "inertia1.phi", "inertia3.phi", "spring.tau"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", SCIPY)
 def test_scipy_methods_reach_their_tolerance_on_first(first_reference, solver):
     m, ref = first_reference
@@ -87,6 +88,7 @@ def test_scipy_methods_reach_their_tolerance_on_first(first_reference, solver):
     assert err[1e-7] < err[1e-5] / 20, (solver, err)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ALL)
 def test_same_named_signals_and_grid_as_ida(first_reference, solver):
     m, ref = first_reference
@@ -138,6 +140,7 @@ def clutches_reference():
     return m, m.simulate(1.5, 1e-2, solver="ida", rtol=1e-10, atol=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver, opts", [("scipy:DOP853", {"rtol": 1e-8}), ("abm", {"h": 5e-4}),
                                           ("convolution", {"rtol": 1e-7})])
 def test_stick_slip_events_match_ida_on_coupled_clutches(clutches_reference, solver, opts):

@@ -1,7 +1,7 @@
 """Fixed start values that cannot be met are errors naming the masses, the devices and the fix.
 
 One mechanism covers every way a start value can be contradicted: the ground a
-mass is connected to (issue 13, item 4: it was silently dropped), several
+mass is connected to (it was once silently dropped), several
 masses on one point, rigid shafts and gears, and motion sources whose reference
 at ``t_start`` disagrees. Values equal up to round-off pass.
 """

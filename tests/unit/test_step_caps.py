@@ -94,6 +94,7 @@ def test_default_caps_leave_the_benchmark_ladder_alone():
         assert scipy_ivp.DEFAULT_MAX_STEPS[method] > 1.5 * steps, method
 
 
+@pytest.mark.slow
 def test_dop853_on_a_motion_far_below_one_keeps_its_accuracy_promise():
     """inertia_ratio_1e8 (all states below 2e-3): with the plain atol DOP853 at its stability limit let a
     speed drift 4.7e-4 of its range unnoticed. With atol scaled to the motion (``StateScale``) a bare run
@@ -126,6 +127,7 @@ def test_state_scale_never_loosens_and_keeps_an_array_atol():
     assert scipy_ivp.StateScale(vec, c).tolerances() is vec
 
 
+@pytest.mark.slow
 def test_convolution_stops_when_newton_keeps_failing_and_names_the_stiff_link():
     # stretched_1e7: once the chain settles the round-off of link5's force exceeds the speeds' atol;
     # Newton then fails at almost every attempt (deterministic: no wall clock involved, ~15,000 steps).
@@ -169,11 +171,12 @@ def test_a_stiffness_no_link_explains_is_named_by_its_mass_and_devices():
     assert "'M1'" in text and "'load1'" in text and "spectral radius" in text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["scipy:DOP853", "dop853"])
 def test_dop853_error_falls_with_rtol_on_a_forced_stiff_lightly_damped_pair(solver):
     # the step cap scales with rtol on the spectral radius for every model: a lightly damped, stiff link forced
     # slowly sits near DOP853's stability limit, where its global error stops following rtol if the steps may
-    # grow to that limit (session 16 tried a cap on the damping alone for symmetric mechanical systems: 1.2e-6
+    # grow to that limit (a cap on the damping alone was tried for symmetric mechanical systems: 1.2e-6
     # of the range at rtol 1e-5 to 1e-8 here, 5.2e-8 at 1e-9; reverted). Errors with the cap: 0.13-0.16 rtol.
     from regmech.components import Fixed, Inertia, Spring, SpringDamper, Torque
     from regmech.signals import Sine

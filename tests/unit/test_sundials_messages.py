@@ -1,6 +1,6 @@
 """SUNDIALS' own error lines (``[IDASolve, Error: -22] At t = ..., mxstep steps taken before reaching
 tout.``) never reach the terminal: an IDA failure is a SimulationError that carries them
-(``solvers.sundials_log``; issue 13, item 10)."""
+(``solvers.sundials_log``)."""
 
 from __future__ import annotations
 
@@ -108,6 +108,7 @@ def test_the_router_leaves_a_replaced_stdout_alone(monkeypatch):
     assert lines == ["[IDASolve, error -22] At t = 1, mxstep steps taken before reaching tout."]
 
 
+@pytest.mark.slow
 def test_threads_printing_while_solves_fail_do_not_crash_the_interpreter():
     """CPython 3.11's print() holds a borrowed reference to sys.stdout: when the last failing solve left and the
     router was released while another thread was printing through it, the interpreter crashed (segmentation
@@ -144,6 +145,7 @@ def test_threads_printing_while_solves_fail_do_not_crash_the_interpreter():
     assert p.stdout == "other thread\n" * 4000 and "finished" in p.stderr
 
 
+@pytest.mark.slow
 def test_sundials_warnings_do_not_reach_the_terminal():
     """SUNDIALS' logger wrote ``[WARNING][rank 0]... root functions identically 0`` to the terminal (seen in a work-precision
     run: a friction guard exactly zero at a segment's start, which regmech's event logic handles): importing

@@ -49,6 +49,7 @@ def _spring(slow=False, hang=False, c=100.0):
 
 
 # -- simulate(timeout_s=...) -------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("solver, options", [
     ("ida", {}), ("rk4", {"h": 1e-3}), ("expm", {"h": 1e-3}), ("scipy:RK45", {}), ("scipy:Radau", {}),
     ("convolution", {})])
@@ -103,6 +104,7 @@ def _check_one_timed_out(table, timeout=TIMEOUT):
     assert np.isfinite(table.loc[[0, 2], "J.phi.final"]).all() and table.attrs["failed"] == 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("executor", ["serial", "process", "dask", "threads"])
 def test_a_hanging_run_becomes_a_failed_row_and_the_study_goes_on(executor):
     _spring().simulate(t_end=1.0)           # kernel templates warm here (forked workers inherit them)
@@ -122,6 +124,7 @@ def test_a_hanging_run_becomes_a_failed_row_and_the_study_goes_on(executor):
     assert "solver 'ida'" in table.loc[1, "error"]          # stopped by the solver's own check
 
 
+@pytest.mark.slow
 def test_a_run_that_never_reaches_a_check_is_stopped_by_killing_its_worker():
     _spring().simulate(t_end=1.0)
     study = [{"hang": False, "c": 100.0}, {"hang": True, "c": 100.0}, {"hang": False, "c": 400.0}]
@@ -156,6 +159,7 @@ rm.sweep(_spring, [{{"slow": True}}] * 4, ["J.phi"], executor="process", workers
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kernel", [True, False], ids=["pdeathsig", "polling"])
 def test_workers_exit_when_the_study_process_is_killed(kernel):
     psutil = pytest.importorskip("psutil")

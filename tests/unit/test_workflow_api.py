@@ -1,4 +1,4 @@
-"""Issue 16: units of every signal and display units; an API that shows itself (signatures, the
+"""Units of every signal and display units; an API that shows itself (signatures, the
 positional-parameter error, res.at/final, the check and summary reports, `regmech check`, IDA's step
 count, the mode tables' numbering)."""
 
@@ -48,9 +48,7 @@ def test_every_component_class_has_a_real_signature(cls):
             assert f"\n{pname} : " in cls.__doc__
 
 
-#: components/friction.py is being reorganised in parallel (issue 16 hybrid work): its dimensionless
-#: parameters (mu, peak, f_normalized, LossyGear.ratio) and tables (mu_table, BearingFriction.tau_table)
-#: get their units there; until then they are the only ones without
+#: every parameter declares its unit; dimensionless ones (mu, peak, f_normalized, LossyGear.ratio) declare '1'
 @pytest.mark.parametrize("cls", PUBLIC + _library_classes(), ids=lambda c: c.__name__)
 def test_every_parameter_declares_its_unit(cls):
     missing = [n for n, s in cls.param_specs().items()
@@ -123,6 +121,7 @@ def _scenes():
     return list(SCENES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", _scenes())
 def test_every_signal_of_every_library_scene_has_a_unit_that_converts(scene):
     res = _run(scene)

@@ -65,6 +65,7 @@ def scipy_pi(u_lim, t_track, t_eval):
     return np.where(t_eval < T_STEP, 0.0, after.sol(np.maximum(t_eval, T_STEP))[0])
 
 
+@pytest.mark.slow
 def test_pi_limits_and_anti_windup_match_scipy_and_cut_the_overshoot():
     u_lim = 5.0
     res = pi_plant(u_lim=u_lim).simulate(t_end=6.0, dt_out=1e-3, **IDA)
@@ -173,6 +174,7 @@ def envelope(w, tau_max=310.0, p_max=150e3):
     return tau_max * wb / max(wb, abs(w))
 
 
+@pytest.mark.slow
 def test_driver_scene_follows_the_cycle_and_matches_an_independent_model():
     from regmech.library import SCENES
     from regmech.library.electric import CYCLE_KMH, KMH, driver_cycle
@@ -323,6 +325,7 @@ def test_torque_of_a_compliant_device_is_sensed_through_its_twist():
     assert res["load.w"][-1] == pytest.approx(6.0 / 0.5, rel=1e-3)        # against the drag d w
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["scipy:DOP853", "ida", "scipy:RK45"])
 def test_a_pi_in_and_out_of_its_limits_is_located_and_accurate(solver):
     """Fuzz seed 30124: a PI on a free inertia follows a fast sine and hits its limits twice a period.

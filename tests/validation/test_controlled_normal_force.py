@@ -1,4 +1,4 @@
-"""A controller driving a friction device's normal force (issue 17, item 4): ``f_normalized=ctl.command(key)``
+"""A controller driving a friction device's normal force: ``f_normalized=ctl.command(key)``
 is a function of the state wherever the hybrid layer reads it (residual, event functions, mode logic). A PI
 slip controller against its closed-form steady state and a hand-written scipy model; a state-driven normal
 force against closed forms through stick, break-away, slip and release; the errors."""
@@ -184,6 +184,7 @@ def test_pi_command_parameters():
     assert PI.actuators == {"flange": "rotational"} and PICommand.actuators == {}
 
 
+@pytest.mark.slow
 def test_slip_control_scene():
     """The library scene: a launch under slip control with the clutch heating up and fading. The loop
     releases the clutch once (the vehicle overshoots the slip reference), engages again and locks when the

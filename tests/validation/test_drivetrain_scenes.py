@@ -26,6 +26,7 @@ def _at(res, t):
     return int(np.searchsorted(res.t, t))
 
 
+@pytest.mark.slow
 def test_six_speed_car_ratios_converter_and_books(six):
     m, res = six
     w_in, w_out = res["gearbox.input.w"], res["gearbox.output.w"]
@@ -49,6 +50,7 @@ def test_six_speed_car_ratios_converter_and_books(six):
     assert not energy_checks(res, m, rel=1e-5)
 
 
+@pytest.mark.slow
 def test_dct_car_launch_handover_and_books(dct):
     m, res = dct
     # the launch clutch slips, then locks

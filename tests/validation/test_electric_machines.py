@@ -25,6 +25,7 @@ def dc_model(u=U, tau_load=-TAU_L, w0=0.0, i0=0.0):
     return m
 
 
+@pytest.mark.slow
 def test_dc_motor_follows_the_linear_closed_form_and_reaches_its_steady_state():
     """x = (i, w): x' = A x + b with A = [[-R/L, -k/L], [k/J, -0]], b = (u/L, tau_load/J): the exact
     solution x(t) = x_ss + expm(A t)(x0 - x_ss)."""

@@ -1,4 +1,4 @@
-"""EKG-5A two-motor swing drive (SOURCES.md 004): start to 10 % of nominal speed.
+"""EKG-5A two-motor swing drive (REFERENCES.md [004]): start to 10 % of nominal speed.
 
 Checks the scene against an independent scipy model of the paper's equations,
 the qualitative result of the paper (the play closes, the elastic torques

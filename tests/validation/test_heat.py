@@ -44,6 +44,7 @@ def test_clutch_locking_two_inertias_dissipates_the_closed_form_energy():
     assert res["clutch.heat"][-1] == pytest.approx(J1 * J2 / (J1 + J2) * (w1 - w2) ** 2 / 2, rel=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["spring_damper", "shaft", "damper"])
 def test_damping_heat_closes_the_energy_book(kind):
     """A free oscillation (or a damped spin-down): kinetic + stored + heat stays at its start value."""

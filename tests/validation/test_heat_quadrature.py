@@ -54,6 +54,7 @@ def brake_heat_by_hand():
     return sol.t_events[0][0], sol.y_events[0][0][1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["ida", "scipy:DOP853", "auto"])
 def test_a_brake_stopping_inside_one_output_interval_books_its_heat(solver):
     t_stop, heat = brake_heat_by_hand()

@@ -10,6 +10,9 @@ from scipy.integrate import trapezoid
 
 from regmech.library import SCENES
 
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
+
 T_END = {"first": 1.0, "coupled_clutches": 1.5, "one_way_clutch": 2.0, "vehicle_launch": 3.0,
          "gear_shift": 1.0, "excavator_swing": 3.0, "train": 5.0, "chain_drive": 0.02,
          "six_speed_car": 4.0, "dct_car": 3.5}

@@ -1,4 +1,4 @@
-"""Mode-logic findings of the session-6 fuzz campaign, each against a closed form or a tighter run.
+"""Mode-logic findings of the fuzz run of seeds 10000-10499, each against a closed form or a tighter run.
 
 A friction device whose zero slip is forced by a motion source through another stuck device.
 
@@ -7,7 +7,7 @@ ground. When the source's speed passes zero the brake's slip passes zero too, bu
 stick: the clutch would have to slip (its kinetic torque 30 N m is beyond the brake's 12 N m), and
 the clutch holds (its load |J1 a + 12| <= 19.5 N m < 30 N m). So the brake reverses and slides on
 with its kinetic torque. Before the fix the ODE-form solvers kept the brake "Held" (no torque) while
-J1 turned at up to 7 rad/s (a silently wrong run: campaign seeds 10021 and 10059) and IDA refused the
+J1 turned at up to 7 rad/s (a silently wrong run: fuzz seeds 10021 and 10059) and IDA refused the
 run with a message about start velocities.
 
 Closed form after the clutch sticks: J1.w = w_ref(t) = 2 + 5 sin(30 t + 0.4); brake torque 12 N m
@@ -17,7 +17,7 @@ t = (pi + asin 0.4 - 0.4) / 30 and (2 pi - asin 0.4 - 0.4) / 30.
 The second case gives the brake a static capacity (18 N m) above the clutch's kinetic torque (15 N m):
 at the source's zero the brake sticks and the clutch slips (the device reaching zero slip sticks
 first, as a compliance between them would decide and MSL's elements do); sliding both, also a
-consistent set, is what the rules gave before (campaign seed 10021 had this pattern on a limited-slip
+consistent set, is what the rules gave before (fuzz seed 10021 had this pattern on a limited-slip
 differential). Closed form: J1 at rest from t1 = (pi + asin 0.4 - 1.4) / 30 on, brake holding 15 N m,
 the clutch reversing at every zero of the source's speed.
 """
@@ -79,6 +79,7 @@ def test_a_brake_dragged_through_zero_by_a_source_slides_with_its_kinetic_torque
     assert np.max(np.abs(np.array(got) - expected)) < 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver,opts", RUNS, ids=[r[0] for r in RUNS])
 def test_a_brake_reaching_zero_slip_sticks_when_it_can_hold_the_slipping_clutch(solver, opts):
     res = model(phase=1.4, lock_fn=1000.0, brake_peak=1.5, w0=2.0 + 5.0 * math.sin(1.4)).simulate(T_END, dt_out=1e-3, solver=solver, **opts)
@@ -101,7 +102,7 @@ def test_a_brake_reaching_zero_slip_sticks_when_it_can_hold_the_slipping_clutch(
 
 
 def _planetary_and_clutch():
-    """Fuzz campaign seed 10135: a LossyPlanetary (large bearing friction) stuck until a clutch on the carrier
+    """Fuzz seed 10135: a LossyPlanetary (large bearing friction) stuck until a clutch on the carrier
     reverses at t = 0.13919 s; in that event the gear's holding torque first passed its limit forward."""
     from regmech.components import EndStop, LossyPlanetary, Torque
     from regmech.signals import Constant, Ramp
@@ -126,6 +127,7 @@ def _planetary_and_clutch():
     return m
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver,opts", [("ida", {"rtol": 1e-8}), ("scipy:DOP853", {"rtol": 1e-8})],
                          ids=["ida", "DOP853"])
 def test_a_lossy_gear_breaking_away_in_a_clutch_event_rolls_the_way_it_moves(solver, opts):
@@ -143,7 +145,7 @@ def test_a_lossy_gear_breaking_away_in_a_clutch_event_rolls_the_way_it_moves(sol
 
 
 def _two_bearings_on_a_locked_differential():
-    """Fuzz campaign seed 10169 (its unconnected mass on an ElastoGap left out): two BearingFriction on one
+    """Fuzz seed 10169 (its unconnected mass on an ElastoGap left out): two BearingFriction on one
     rigid motion (the carrier and one side of a limited-slip differential whose lock is stuck), driven by a DC
     motor on a Sine voltage."""
     from regmech.components import BearingFriction, DCMotor

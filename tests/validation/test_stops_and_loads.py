@@ -48,6 +48,7 @@ def _bounce(d, v0=1.0, m=2.0, c=1e5, domain="translational", t_end=0.36):
     return mod, mod.simulate(t_end=t_end, dt_out=1e-5, **TIGHT)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain", ["translational", "rotational"])
 def test_elastic_stop_closed_form(domain):
     """d = 0: the contact is half a period of sqrt(c/m), the rebound speed is -v0, the penetration
@@ -68,6 +69,7 @@ def test_elastic_stop_closed_form(domain):
     assert s.min() == pytest.approx(-0.1 - v0 * math.sqrt(m / c), rel=1e-6)
 
 
+@pytest.mark.slow
 def test_damped_stop_never_supplies_energy_and_never_pulls():
     mod, res = _bounce(200.0)
     f = res["stop.f"]
@@ -91,6 +93,7 @@ def test_end_stop_parameter_errors():
         EndStop("s", lower=0.0, upper=0.1, c=1.0, d=-1.0)
 
 
+@pytest.mark.slow
 def test_elasto_gap_one_sided_contact():
     """A mass falls onto a gap (closed at s_rel < 0.05): half a period in contact, pushes only."""
     m, c, v0 = 1.0, 4e4, 0.5

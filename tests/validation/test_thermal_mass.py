@@ -1,4 +1,4 @@
-"""A friction element's lumped thermal mass inside the DAE (issue 17, item 6): ``C dT/dt = lam w_rel -
+"""A friction element's lumped thermal mass inside the DAE: ``C dT/dt = lam w_rel -
 G (T - T_amb)`` with the temperature a state and fade ``mu * fade(T)``; closed forms, an independent scipy
 model of a fading brake stop (slip, then stuck), the heat books, and the solvers that decline it."""
 
@@ -12,6 +12,9 @@ import regmech as rm
 from regmech.components import Brake, Clutch, Fixed, Inertia, Speed, Torque
 from regmech.components.heat import ThermalMass
 from regmech.errors import ParameterError, SimulationError, StructureError
+
+# long-running (over 2 s on 2 cores): left out of the fast lane, pytest -m 'not slow'
+pytestmark = pytest.mark.slow
 
 MU, CGEO, FN = 0.4, 0.1, 1000.0
 

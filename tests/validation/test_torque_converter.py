@@ -207,7 +207,7 @@ def test_no_jump_between_traction_and_overrun_at_equal_speeds(w):
 def test_no_jump_between_traction_and_overrun_in_counter_rotation(w):
     """At w_t = -w_p the turbine torque is continuous to round-off: the regularised speed ratio is -1 + 2 w_eps^2 /
     (w_p^2 + w_eps^2) there, and the deep-stall torque ratio, a line in it, reached 1 + (TR(0) - 1) 2 w_eps^2 /
-    w_p^2 only: a jump of the turbine torque by (TR(0) - 1) 2 w_eps^2 c(0) (7e-8 N m on campaign seed 60009, at
+    w_p^2 only: a jump of the turbine torque by (TR(0) - 1) 2 w_eps^2 c(0) (7e-8 N m on fuzz seed 60009, at
     any speed) that IDA could not step over at rtol 1e-10. Either side of the crossing, the slopes differ (a kink,
     a switching surface), the values do not; both torques stay within the slope times the distance."""
     d = 1e-9 * w

@@ -1,4 +1,4 @@
-"""The tables of SOURCES.md 002 (matrix numerical-analytical integration), recomputed.
+"""The tables of REFERENCES.md [002] (matrix numerical-analytical integration), recomputed.
 
 ``optimal_split_table()``
     The paper's optimal split between Taylor order r and doublings m. Error
@@ -34,7 +34,7 @@ import math
 import numpy as np
 from scipy.optimize import brentq
 
-#: the paper's table (SOURCES.md 002): r -> (theta, eps)
+#: the paper's table (REFERENCES.md [002]): r -> (theta, eps)
 PAPER_TABLE = {1: (0.75, 4e-1), 2: (0.50, 4e-2), 3: (0.31, 1e-3), 4: (0.19, 1e-5), 5: (0.11, 2e-8),
                6: (0.06, 1e-11)}
 

@@ -117,18 +117,19 @@ FAMILIES = {
     "torque": 4, "force": 3, "speed": 2, "position": 2,
     # electric machines and closed-loop control (sources too: they feed work in)
     "dc_motor": 2, "electric_motor": 2, "pi_control": 2,
-    # drivetrain components of issue 17 (stops, loads, friction laws, transmissions)
+    # drivetrain components: stops, loads, friction laws, transmissions
     "end_stop": 2, "elasto_gap": 1, "speed_load": 2, "stribeck_clutch": 2, "linear_brake": 1, "vehicle_load": 1,
     "gearbox": 1, "torque_converter": 1,
-    # session 9: rigid impacts and friction heating inside the DAE
+    # rigid impacts and friction heating inside the DAE
     "hard_stop": 2, "thermal_friction": 2,
 }
-#: the families before issue 17, in their order: ``generate(families=FAMILIES_BEFORE_17)`` draws the same
-#: models for the same seeds as before they were added (regression tests pinned to a seed use it)
-FAMILIES_BEFORE_17 = tuple(FAMILIES)[:26]
-#: the families before session 9 added ``hard_stop`` and ``thermal_friction``: the models of campaign seeds
-#: 60000.. (``benchmarks/results/fuzz/verdicts.jsonl``) as they were drawn
-FAMILIES_BEFORE_S9 = tuple(f for f in FAMILIES if f not in ("hard_stop", "thermal_friction"))
+#: the 26 families before the drivetrain components (stops, loads, friction laws, transmissions), in their
+#: order: ``generate(families=FAMILIES_BASIC)`` draws the models the earliest fuzz runs drew for the same seeds
+#: (regression tests pinned to such a seed use it)
+FAMILIES_BASIC = tuple(FAMILIES)[:26]
+#: every family but ``hard_stop`` and ``thermal_friction``: the models of fuzz seeds 60000-69999
+#: (``benchmarks/results/fuzz/verdicts.jsonl``) as they were drawn
+FAMILIES_NO_IMPACTS = tuple(f for f in FAMILIES if f not in ("hard_stop", "thermal_friction"))
 #: signal types drawn for sources and normal forces ("callable": a lambda of t)
 SIGNALS = ("Constant", "Step", "Ramp", "Sine", "Table", "Pulse", "callable")
 #: families that need a translational mass to attach to
@@ -924,7 +925,7 @@ def generate(rng, families=None, n_steps=None, require=(), name="fuzz", referenc
 
 
 def generate_seed(seed: int, families=None, n_steps=None, require=()) -> ModelSpec:
-    """The model of campaign seed ``seed`` (``random.Random(seed)``)."""
+    """The model of fuzz seed ``seed`` (``random.Random(seed)``)."""
     spec = generate(random.Random(seed), families=families, n_steps=n_steps, require=require, name=f"fuzz_{seed}")
     spec.seed = seed
     return spec
@@ -1188,7 +1189,7 @@ def energy_checks(res, model, run="", rel=1e-4, abs_speed=0.0, metrics=None) -> 
                                 f"{POWER_FACTOR * rel:.1g})", run))
     # energy books
     # the trapezoid over the rows with its own Richardson estimate, independent of the product's quadrature
-    # (``Result.integral``, which a result's ``heat`` uses): tried in session 8, its estimate missed the clip kink
+    # (``Result.integral``, which a result's ``heat`` uses): tried, its estimate missed the clip kink
     # of a damped stop's contact (tests/validation/test_stops_and_loads: books 6e-8 J open, estimate 6e-12 J)
     # and its re-integrations of tight references tripled the CI subset's time; the models where the rows do
     # not resolve a stop (seeds 10288, 40477, 50103) stay findings of the checks, not of the product
@@ -1288,7 +1289,7 @@ def finite_check(res, run="", integral_tol=None) -> list[Finding]:
     rate_of = getattr(getattr(res, "_traj", None), "integral_rate", None)
     rates = {}
     # all integrals in one read: they share the quadrature's midpoint rows, its re-integrations and its work bound
-    # (one ``res[name]`` per heat gave each its own: campaign seed 60374 spent 32 s reading its heats after a 17.8 s
+    # (one ``res[name]`` per heat gave each its own: fuzz seed 60374 spent 32 s reading its heats after a 17.8 s
     # run, and the model's 420 s limit killed it as a hang)
     if rate_of is not None and getattr(res, "integrator", None) is not None:
         rates = {name: rate_of(name) for name in res.names}
@@ -1689,6 +1690,6 @@ def evaluate(spec: ModelSpec, runs=RUNS, max_calls=DEFAULT_MAX_CALLS, time_limit
     return v
 
 
-__all__ = ["FAMILIES", "FAMILIES_BEFORE_S9", "SIGNALS", "ModelSpec", "generate", "generate_seed", "evaluate", "Verdict", "Finding",
+__all__ = ["FAMILIES", "FAMILIES_NO_IMPACTS", "SIGNALS", "ModelSpec", "generate", "generate_seed", "evaluate", "Verdict", "Finding",
            "RunOutcome", "RUNS", "claimed_error", "energy_checks", "finite_check", "agreement", "integrate",
            "contract_error", "default_accuracy", "conditioning", "perturb_masses"]

@@ -9,7 +9,7 @@ matrices, compute the exact motion (``exact``) of
 
     M x'' + D x' + K x = f(t),      f(t) = f0_k + f1_k (t - a_k) on [a_k, a_{k+1})
 
-Method: the scaled first-order state of SOURCES.md 002 (``L = M^1/2``,
+Method: the scaled first-order state of REFERENCES.md [002] (``L = M^1/2``,
 ``w = sqrt(||L^-1 K L^-1||_inf)`` an upper bound of the highest natural
 frequency)::
 

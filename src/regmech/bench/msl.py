@@ -1,9 +1,9 @@
 """Errors against the Modelica Standard Library reference trajectories.
 
 The files (``First.csv``, ``CoupledClutches.csv``, ...; Dymola, DASSL,
-tolerance 1e-6, see ``shared/reference/README.md``) live in
-``../shared/reference/msl`` relative to the repository (or wherever
-``$REGMECH_MSL_REFERENCE`` points). They are themselves accurate to about
+tolerance 1e-6, see ``regmech/data/msl/README.md``) ship with the package
+(``regmech.data.msl_dir``; ``$REGMECH_MSL_REFERENCE`` points elsewhere when
+set). They are themselves accurate to about
 1e-4 (CoupledClutches' ``J1.w`` is 6.6e-5 off the closed form), so an
 error against them says whether a run reproduces MSL within the library's
 own tube (2e-3), not how accurate the run is; the work-precision errors are
@@ -18,25 +18,21 @@ switch-time error of the friction modes (mode changes read from the
 from __future__ import annotations
 
 import csv
-import os
 from pathlib import Path
 
 import numpy as np
 
+from ..data import msl_dir
 from .metrics import SCALE_FLOOR, sample, switch_time_error
 
 _CACHE: dict = {}
 
 
 def reference_dir() -> Path | None:
-    """``$REGMECH_MSL_REFERENCE``, else ``shared/reference/msl`` beside the checkout (None if absent)."""
-    env = os.environ.get("REGMECH_MSL_REFERENCE")
-    if env:
-        return Path(env) if Path(env).is_dir() else None
-    here = Path(__file__).resolve()
-    candidates = [p / "shared" / "reference" / "msl" for p in list(here.parents)[:7]]
-    candidates.append(Path.cwd().parent / "shared" / "reference" / "msl")
-    return next((p for p in candidates if p.is_dir()), None)
+    """``$REGMECH_MSL_REFERENCE`` when set, else the files shipped in ``regmech/data/msl``
+    (None when the folder does not exist)."""
+    folder = msl_dir()
+    return folder if folder.is_dir() else None
 
 
 def load(file: str) -> dict[str, np.ndarray] | None:

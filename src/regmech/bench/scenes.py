@@ -35,7 +35,7 @@ DEFAULT_REFERENCE = (("scipy:DOP853", {"rtol": 1e-12, "atol": 1e-14}), ("ida", {
 
 @dataclass(frozen=True)
 class MslReference:
-    """An MSL reference file (``../shared/reference/msl/<file>``) and the columns compared:
+    """An MSL reference file (``<file>`` in ``regmech/data/msl``) and the columns compared:
     ``columns`` maps a regmech signal to the CSV column; ``modes`` the friction devices
     whose ``<name>.mode`` columns give the reference's switch times."""
 

@@ -136,7 +136,7 @@ class _KernelPrinter(NumPyPrinter):
     def _print_Piecewise(self, expr):
         """Nested ``numpy.where`` instead of NumPyPrinter's ``numpy.select``: the same first-true-branch rule, but
         ``select`` broadcasts its lists on every call, 50 us on the one-element arrays of a class with one
-        instance; it was 46 % of a run of campaign seed 60016 (a lossy gear, an end stop, a sign load: 156,897
+        instance; it was 46 % of a run of fuzz seed 60016 (a lossy gear, an end stop, a sign load: 156,897
         selects in 31,318 residual calls). ``where`` costs about 2 us there."""
         where = self._module_format("numpy.where")
         pieces = list(expr.args)

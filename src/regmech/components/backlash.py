@@ -1,6 +1,6 @@
 """Backlash: an elastic link with a dead zone (gear play, coupling slack).
 
-``Backlash(c, b)`` is the dead-zone spring of SOURCES.md 004 (the excavator
+``Backlash(c, b)`` is the dead-zone spring of REFERENCES.md [004] (the excavator
 swing drive): no torque inside the play, a linear spring outside it.
 ``ElastoBacklash(c, d, b)`` is MSL ``Rotational.Components.ElastoBacklash``:
 the same with a damper in parallel with the spring, the damping torque
@@ -68,7 +68,7 @@ def _contact_spring(c, phi_diff, b_half):
 
 
 class Backlash(TwoFlangeCompliant):
-    """Dead-zone spring (SOURCES.md 004)::
+    """Dead-zone spring (REFERENCES.md [004])::
 
         phi_diff = phi_rel - phi_rel0
         tau = c * (phi_diff - b/2)   if phi_diff >  b/2

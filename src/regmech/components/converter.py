@@ -172,7 +172,7 @@ class ConverterFluid(Device):
         ``nu = 0`` to 1 at ``nu = -1``), written so that it is *exactly* TR(0) where the regularised ``nu`` is 0
         (``w_t w_p = -w_eps^2``) and exactly 1 at ``w_t = -w_p``, where traction meets overrun (coupling, TR = 1).
         As a function of the regularised ``nu`` the line reached only ``1 + (TR(0) - 1) 2 w_eps^2 / (w_p^2 +
-        w_eps^2)`` there: the turbine torque jumped by ``(TR(0) - 1) 2 w_eps^2 c(0)`` (7e-8 N m on campaign seed
+        w_eps^2)`` there: the turbine torque jumped by ``(TR(0) - 1) 2 w_eps^2 c(0)`` (7e-8 N m on fuzz seed
         60009), and IDA, whose error test sees a jump of an algebraic force at every step size, took 50,000 steps
         at rtol 1e-10 without passing it. Used where ``nu < 0`` and ``|w_t| <= |w_p|``, so ``w_p^2 > w_eps^2``
         there; the floor of the denominator only keeps the unused branch finite."""
@@ -194,7 +194,7 @@ class ConverterFluid(Device):
         branch). Unwatched, IDA at rtol 1e-10 took a step of 1.3e-22 s at that crossing and failed (fuzz seed
         60009: a turbine pulled backwards through the pump's speed); watched, no step straddles it. One
         surface, not the pair ``+-(w_p + w_t)``: the two cross at the same root, and a crossing reported for
-        one of them only left the other on its old side (campaign seed 60005: the state read 0 and IDA
+        one of them only left the other on its old side (fuzz seed 60005: the state read 0 and IDA
         failed its error test at the restart). The other meeting of traction and overrun, ``w_t = w_p``, is
         smooth by construction (see the module docstring) and is not watched: a locked lock-up clutch holds
         the speeds there to round-off, where a surface would be zero and flip sign at every step."""

@@ -91,7 +91,7 @@ class DCMotor(Device):
 
 class SeriesDCMotors(Device):
     """Two DC motors on one armature circuit (one current ``i`` through both), as
-    the Ward-Leonard swing drive of SOURCES.md 004::
+    the Ward-Leonard swing drive of REFERENCES.md [004]::
 
         L di/dt = u(t) - R i - k_1 w_1 - k_2 w_2     [V]
         tau_1 = k_1 i,  tau_2 = k_2 i                [N m]

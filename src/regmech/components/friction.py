@@ -5,7 +5,7 @@ Devices: ``Clutch`` (between two flanges), ``Brake`` (flange to support),
 ``BearingFriction`` (speed-dependent torque table, no normal force).
 
 Every device keeps **one equation structure** in all modes (the "universal
-equation" of SOURCES.md 003, MSL PartialFriction): a row of the constraint
+equation" of REFERENCES.md [003], MSL PartialFriction): a row of the constraint
 matrix ``G_f`` (its relative coordinate) and one unknown force ``lam``:
 
 =========  ====  ===========================================
@@ -526,7 +526,7 @@ class LossyGear(FrictionDevice):
         """The table's row at ``|w|`` (linear between its speeds, constant beyond them) as ``(eta1, eta2, bf1,
         bf2, bf_a)``. Plain floats and a bisection, and the last answer kept: the mode logic and the friction rows
         ask for the same speed several times per residual call, and four ``np.interp`` calls a time were a
-        quarter of a run of campaign seed 60016 once its kernels stopped dominating."""
+        quarter of a run of fuzz seed 60016 once its kernels stopped dominating."""
         last = self._interp_last
         if last is not None and last[0] == w_abs:
             return last[1]

@@ -1,6 +1,6 @@
 """Gearing with two degrees of freedom: ``Differential`` and ``Planetary``.
 
-Both are one-row rigid devices (SOURCES.md 003: "differential, W = 2"): three
+Both are one-row rigid devices (REFERENCES.md [003]: "differential, W = 2"): three
 flanges bound by one linear relation between their angles, so two of the
 three stay free. The constraint force ``lam`` of the row is the only torque
 unknown; the flange torques are its multiples by the row's coefficients,
@@ -9,8 +9,8 @@ the torque the device exerts on itself; the bodies receive the opposite).
 
 Losses: ``LossyPlanetary`` gives the planetary set the efficiency of its
 basic (carrier-stopped) gear train, with stuck/rolling modes, through the
-``LossyGear`` machinery ("efficiency with the third link stopped", SOURCES.md
-003); ``LimitedSlipDifferential`` adds internal friction (a preloaded clutch
+``LossyGear`` machinery ("efficiency with the third link stopped", REFERENCES.md
+[003]); ``LimitedSlipDifferential`` adds internal friction (a preloaded clutch
 between the side gears) to the open differential.
 """
 
@@ -100,7 +100,7 @@ class LossyPlanetary(LossyGear):
     ``-ratio`` (``phi_sun - phi_c = -ratio (phi_ring - phi_c)``, Willis), so the
     set is a ``LossyGear`` between ``sun`` (flange_a) and ``ring`` (flange_b) whose
     support is the ``carrier``: the efficiency is that of the carrier-stopped
-    train (SOURCES.md 003, "efficiency with the third link stopped"), applied
+    train (REFERENCES.md [003], "efficiency with the third link stopped"), applied
     to the power flowing through the meshes in the carrier frame. ``loss_table``
     rows ``(|w_sun - w_carrier|, eta_mf1, eta_mf2, tau_bf1, tau_bf2)`` as in
     ``LossyGear`` (1: the sun drives the train, 2: the ring drives it). With the

@@ -59,7 +59,7 @@ class _MapParam(Param):
 
 
 def _engine_shell(public_cls, points, drag=None):
-    """Unpickling helper: an empty instance of the class of the maps."""
+    """For unpickling: an empty instance of the class of the maps."""
     return object.__new__(public_cls._class_for(points, drag))
 
 

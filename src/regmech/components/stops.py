@@ -228,6 +228,12 @@ class HardStop(FrictionDevice):
     books only ``-P (w- + w+) / 2``, but in the impact's ``Event.work``, ``Result.impulse_work`` and the
     source's ``res.integral('<source>.power')``: the books close); a hard stop is a friction row of the hybrid
     layer (Free / Stuck), so a holding stop takes part in the holding-torque solve like a stuck brake.
+
+    Limits: stops reaching a limit at the same instant get their impulses one after another in model
+    order, each from the speeds the previous one left (a later stop whose body already moves away gets
+    none), not as one joint multi-contact (LCP) impulse, so the outcome of truly simultaneous impacts
+    can depend on that order. The impulse is a dense solve over the model's coordinates: O(n^3) per
+    impact, fine for drivetrain-size models, costly for chains of thousands of masses.
     """
 
     impact = True

@@ -1,5 +1,5 @@
 """Wheels: rolling kinematics, a wheel with tyre compliance and stick/slip
-road contact (SOURCES.md 003), and a Magic-Formula tyre.
+road contact (REFERENCES.md [003]), and a Magic-Formula tyre.
 
 ``Wheel`` (a ``Subsystem``) is the translational-rotational wheel of the
 regular-system paper::

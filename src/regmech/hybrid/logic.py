@@ -1,6 +1,6 @@
 """The mode logic of friction and loss elements: iterating the modes at an event to a consistent set.
 
-As MSL does it (``PartialFriction``; shared/notes friction.md):
+As MSL does it (``Modelica.Mechanics.Rotational.Interfaces.PartialFriction``):
 
 * sliding -> Stuck when ``w_rel`` reaches zero (root of ``mode * w_rel``, decreasing); the new
   Stuck mode is checked only in the next iteration;
@@ -58,7 +58,7 @@ class ModeLogic:
         y, yp, new, scale, view = self._settle_once(t, state, old, crossed, initial, lam_rate)
         # The modes settled here must be what the logic finds again at this instant with nothing crossed: a device
         # left sliding at zero slip, held by others, is re-stuck at the next event whatever it is (fuzz seed 102's
-        # rule), and with several holders the outcome then differed (campaign seed 10169: a bearing re-stuck with
+        # rule), and with several holders the outcome then differed (fuzz seed 10169: a bearing re-stuck with
         # its static capacity at one event broke away 1.7 ms later under DOP853, at once under IDA, whose round-off
         # crossing of a slip of 1e-97 gave the extra event: 1 % of the range apart). So the logic runs again from
         # its own answer until that changes nothing (bounded; a pair of answers taking turns keeps the later one).

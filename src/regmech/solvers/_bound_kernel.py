@@ -1,4 +1,4 @@
-"""numba kernels of ``ode_driver.spectral_bound`` (the explicit methods' up-front stiffness check, issue 15);
+"""numba kernels of ``ode_driver.spectral_bound`` (the explicit methods' up-front stiffness check);
 imported only when the model's right-hand side is compiled too (numba is loaded already, so the check costs
 no import).
 

@@ -404,7 +404,7 @@ def match_events(events_a, events_b, graze_span: float | None = None) -> EventMa
     Likewise a rebound series of a hard stop (impacts on one side, each with ``e^2`` of the energy of the one
     before) is one change per series where the runs count its impacts differently: the tail of the series, ever
     shorter and weaker rebounds until the Zeno rule holds the contact, is resolved to a depth that follows the
-    tolerance (a helper's fuzz, seed 90076: a servo-driven inertia rattling in a stop with e = 0.4, 11 and 12
+    tolerance (a fuzz run, seed 90076: a servo-driven inertia rattling in a stop with e = 0.4, 11 and 12
     impacts in its first series at ida's rtol 3e-7 and 3e-8, every pair rejected and the default call refused),
     while the motion of the two runs agrees to 2.6e-5 of the range; the series' first impacts are matched in time
     and the state signals judge the rest (the repeats are listed in ``grazing`` with duration 0)."""

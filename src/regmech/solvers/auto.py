@@ -29,8 +29,8 @@ ratio ``zeta`` and frequency ``f`` stays above ``a`` of its amplitude for
 
     periods(a) = max over the modes of min(span * f, ln(1/a) / (2 pi zeta)).
 
-The rules (measured, see BENCHMARKS.md, "Calibration of the accuracy
-contract", which lists the figures each comes from):
+The rules (measured: ``benchmarks/results/calibration.md``, "The rules of
+``solver="auto"`` and the figures they come from"; summary in BENCHMARKS.md):
 
 ``expm`` is a candidate only for a linear model whose round-off bound is
 within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
@@ -70,14 +70,14 @@ within what its estimate is held to (``floor <= accuracy * FLOOR_MARGIN``,
    * oscillation``, and a link spread of at least ``STIFF_SPREAD``): local
    modes of stiff links far above the output grid, which a stepping method
    resolves while they ring whether or not the grid shows them. Measured
-   (session 19, random chains and trees of 41-260 inertias 1e-3 to 10 kg
+   (random chains and trees of 41-260 inertias 1e-3 to 10 kg
    m^2 on links of 1e2 to 1e6 N m/rad, a step or a 1-20 Hz sine torque, 1 s,
    accuracy 1e-3 and 1e-6, dt_out 1e-2 and 1e-3, each solver under the
    contract): of the cells where rule 3 had chosen ida, the test sends 20
    to expm; on four models ida had taken 1.7-4.3 s and expm takes
    0.06-0.5 s; the worst loss, 0.22 -> 1.1 s (116 states at 1e-6, dt_out
    1e-2, expm's coarse grid); in all 106 -> 87 s over the sample;
-E. (between rules 2 and 3, session 18) a linear model of at least
+E. (between rules 2 and 3) a linear model of at least
    ``EXPLICIT_STATES_MIN`` ODE states (``EXPLICIT_STATES_MIN_LOOSE``, 200, at an
    accuracy looser than ``EXPLICIT_TIGHT``) without friction devices whose ODE
    form is the linear one (no rigid links or gears with constraints), whose
@@ -188,11 +188,11 @@ NATIVE_EXPM_POWER = 1.43
 #: won every measured cell: chains of 30 inertias 1.5-5x, random trees of 50 inertias 1.1-2x) ...
 EXPLICIT = "dop853"
 EXPLICIT_STATES_MIN = 150
-#: ... and at an accuracy looser than EXPLICIT_TIGHT at least EXPLICIT_STATES_MIN_LOOSE. Session 18 (400 states): at
+#: ... and at an accuracy looser than EXPLICIT_TIGHT at least EXPLICIT_STATES_MIN_LOOSE. Measured with a bound of 400 states: at
 #: 1e-3 a native ida step was cheap enough that it matched dop853 at 200-300 states (both under the contract,
 #: interleaved, medians of 5: the chain of 100 inertias 10.6 against 11.7 ms, of 150 16.0 against 12.8, a train of
 #: 150 cars 28.9 against 35.8, of 100 19.3 against 18.5), although random trees of 100 and 150 inertias went 4-9x
-#: faster with dop853. Session 19 (200 states): with a step's stages in one compiled call (``OdeProblem.stage_sweep``)
+#: faster with dop853. With a bound of 200 states and a step's stages in one compiled call (``OdeProblem.stage_sweep``)
 #: dop853's pair at 1e-3 took 0.71 (chain of 100), 0.51 (chain of 150), 0.16 and 0.08 (trees of 100 and 150) and
 #: 0.80 (train of 100) times native ida's, and 1.05 on the train of 150 (``bench_auto_rules.py --boundary``, medians
 #: of 5, interleaved, quiet machine; benchmarks/results/auto_rules.md); at 1e-4 and tighter 0.11-0.76
@@ -203,7 +203,7 @@ EXPLICIT_STATES_MIN_LOOSE = 200
 #: coarser grid made expm's first run fail its estimate and retry at a step of 2e-5 to 5e-3 s: random trees of 200,
 #: 400 and 1000 inertias at dt_out 1e-2, 0.4 s, 5.5 s and 20 s against dop853's 0.05-0.2 s) and the model at most
 #: EXPM_FIRST_STATES states (the tree of 1000 inertias, 2000 states, at dt_out 1e-3: expm 0.9 and 1.5 s against
-#: dop853's 0.23 and 0.47 s, with about as many steps). Measured: a helper's fuzz campaign of rule E (session 18: 48
+#: dop853's 0.23 and 0.47 s, with about as many steps). Measured: random models for rule E (48
 #: cells where it chose dop853, random chains, trees and trains of 75-600 bodies, accuracy 1e-3 and 1e-6, both
 #: under the contract; expm met the accuracy in all): this rule sends 22 of them to expm, which was faster in each
 #: (1.1-8.5x); of the 26 left to dop853, 18 took at most 1.06x expm's time (0.16-1.06x) and 7 1.5-4.75x (a
@@ -536,7 +536,7 @@ def choose(tr: Traits, accuracy: float) -> list[tuple[str, str]]:
     if not any(solver == EXPLICIT for solver, _ in out):
         # ida's own refusal of an accuracy it cannot reach names DOP853: an order-8 method whose events are located
         # on its own steps, refused at once by its up-front stiffness check where the model is stiff for it (a
-        # helper's fuzz, seed 90019: a mass rattling in a 1e9 N/m end stop, ida refused 1e-3 after three pairs,
+        # fuzz run, seed 90019: a mass rattling in a 1e9 N/m end stop, ida refused 1e-3 after three pairs,
         # Radau then took 38.6 s, DOP853 12.5 s)
         out.append((EXPLICIT, "after ida refused: an explicit method of order 8 that locates events on its own "
                               "steps (refused at once where the model is stiff for it)"))

@@ -10,7 +10,7 @@ the benchmark chain of 10,000 inertias (``scipy:DOP853``, 64 steps, 131
 products) spent 0.70 s in ``dot`` with the default two threads while
 another process held a core, 0.15 s when it did not, and under a
 millisecond with one thread (the whole run 0.10 s instead of 0.57-0.81 s;
-``benchmarks/results/blas_threads_session22.md``). The gain of a second
+``benchmarks/results/blas_threads.md``). The gain of a second
 thread on such a product is small even on an idle machine.
 
 So ``one_blas_thread()`` sets numpy's OpenBLAS to one thread

@@ -1,4 +1,4 @@
-"""The analytic-numerical convolution method (SOURCES.md 004) on the ODE form: ``convolution``.
+"""The analytic-numerical convolution method (REFERENCES.md [004]) on the ODE form: ``convolution``.
 
 Every state is treated as a first-order lag ``T_i u_i' + u_i = f_i(t, u)``
 whose input is ``f_i = u_i + T_i g_i(t, u)``; over a step of length h the
@@ -32,7 +32,7 @@ The corrector is implicit: ``f_{i+1}`` is taken at the new state itself.
 ``corrector="pece"`` is the paper's literal single pass: the corrector is
 evaluated once with ``f_{i+1} = f(t_{i+1}, u_P)``.
 
-Why it matters (measured on the excavator swing drive, SOURCES.md 004, with
+Why it matters (measured on the excavator swing drive, REFERENCES.md [004], with
 fixed steps; benchmarks/results/solvers_ode.md). Each state's *own* time
 constant is integrated exactly by both, which is what the paper's claim of
 stability at any step rests on. But the coupling *between* states (the

@@ -1,4 +1,4 @@
-"""The matrix numerical-analytical integrator of SOURCES.md 002: ``expm``.
+"""The matrix numerical-analytical integrator of REFERENCES.md [002]: ``expm``.
 
 For a *linear* model (springs, dampers, inertias, ideal gears, rigid shafts,
 force sources with any signal, Position/Speed sources, friction devices with
@@ -13,7 +13,7 @@ coordinates, every device force that changes in time (sources), the
 kinematic excitation (``-K_g dg - B_g g' - M_g g''`` of moving supports) and
 the forces of sliding friction devices.
 
-Scaled first-order form (SOURCES.md 002 and its measured notes): with the
+Scaled first-order form (REFERENCES.md [002]): with the
 Cholesky factor ``M = L L^T`` (``L = M^1/2`` for a diagonal M) and
 ``w = sqrt(||C^||_inf)`` [1/s], an upper bound of the highest natural
 frequency, the paper's form ("frequency" scaling) is
@@ -52,7 +52,7 @@ are exact too: their particular solution
 ``q_p(t) = Re(sum_f Z_f e^{i w_f t})``, ``(i w_f I - A) Z_f = W c_f``, is
 taken out of the state before a step and put back after it
 (``ExpmStepper.particular``), so the polynomial fit carries only the rest.
-Why (session 19): the fit's error is a ripple at the step rate, which
+Why: the fit's error is a ripple at the step rate, which
 excites lightly damped modes near that rate and its harmonics; a run and
 its companion at 2h can ring alike, so that their difference misses it (a
 random tree of 113 inertias with modes of 651-697 Hz at damping ratios near
@@ -76,7 +76,7 @@ about 55 the dense products fall off a cliff under threaded BLAS on a
 loaded 2-core machine (a contract run of expm on the 60-inertia benchmark
 chain: 1.4 s dense, 0.20 s sparse; 50 inertias 0.12 / 0.16 s; with one BLAS
 thread both about 0.1 s), and the sparse path gives the same answer. The 2 x 2 block structure with symmetric
-blocks (SOURCES.md 002) is not exploited: with damping that does not commute
+blocks (REFERENCES.md [002]) is not exploited: with damping that does not commute
 with the stiffness the blocks are not symmetric, and the sparse path
 already removes the n^3 cost for chains.
 

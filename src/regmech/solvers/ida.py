@@ -514,7 +514,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 # the law's branch changed: the rates of the algebraic unknowns (constraint forces, dummy
                 # accelerations) jump at the kink, and IDA's first predictor on the new branch needs theirs
                 # the dummy coordinates from the constraints, not from IDA's interpolant at the root: a steep
-                # position servo's dummy speed was 8.5e-7 rad/s off there (campaign seed 60005, 4e5 rad/s^3),
+                # position servo's dummy speed was 8.5e-7 rad/s off there (fuzz seed 60005, 4e5 rad/s^3),
                 # and IDA failed its error test on that offset at every step size after the restart
                 y, yp = _on_constraints(c, t_ev, y_ev, modes)
                 # one row: the state and (the law being continuous) the accelerations are the same on both

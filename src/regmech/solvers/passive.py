@@ -135,7 +135,7 @@ def _free_groups(K, B):
     zero over the group: nothing grounds it). Their common motion keeps its momentum and its kinetic energy
     ``p^2 / (2 M)``, which the springs cannot reach: a drivetrain spinning at 190 rad/s holds so much of it that a
     vibration's energy grown 40-fold moved the total by 5 % (dopri5 at rtol 0.0136 on a free 4-inertia chain, an
-    answer 5 times the range off, a helper's fuzz of the book), so the book leaves it out."""
+    answer 5 times the range off, a fuzz run of the book), so the book leaves it out."""
     from scipy.sparse.csgraph import connected_components
     n = K.shape[0]
     links = sp.csr_matrix((abs(K) + abs(B)))

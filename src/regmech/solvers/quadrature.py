@@ -65,8 +65,8 @@ MAX_RHS_CALLS = 20_000
 #: failure costs its whole budget: fuzz seed 60011 failed 69 intervals, 2.5-3.7 s each)
 MAX_FAILURES = 2
 #: right-hand side evaluations of all the re-integrations of one call together: beyond them the intervals left keep
-#: Simpson's value, counted whole in the estimate and said (campaign seed 60105: 65 intervals re-integrated at
-#: about 11,000 evaluations each, 97 s to read one heat of a 0.3 s run; the campaign took it for a hang)
+#: Simpson's value, counted whole in the estimate and said (fuzz seed 60105: 65 intervals re-integrated at
+#: about 11,000 evaluations each, 97 s to read one heat of a 0.3 s run, which looked like a hang)
 TOTAL_RHS_CALLS = 100_000
 #: right-hand sides allowed to DOP853 before the re-integration of an interval turns to an implicit method
 EXPLICIT_RHS_CALLS = 5_000
@@ -190,7 +190,7 @@ def _reintegrate(traj, names, k, u0, modes, tol_state, scale_u, quadrant=None):
             with np.errstate(all="ignore"):
                 sol = solve_ivp(f, (t0, t1), u0, method=method, rtol=rtol, atol=atol, dense_output=True, **opts)
         except (_Budget, ValueError, ArithmeticError, np.linalg.LinAlgError, RegmechError):
-            # the method failed in this interval (campaign seed 60110: Radau's motion, frozen in the interval's
+            # the method failed in this interval (fuzz seed 60110: Radau's motion, frozen in the interval's
             # modes, ran to inf and scipy's LU refused its matrix with a ValueError that reached the user's
             # ``res['bearing1.heat']``): the next method tries, and Simpson's value stands if none gets through
             sol = None

@@ -190,7 +190,7 @@ class ScipyStepper(Stepper):
         f0 = getattr(self.solver, "f", None)
         if f0 is not None:
             # scipy's explicit methods would try steps forever: their first step estimate is NaN, and NaN < min_step
-            # is False (a right-hand side non-finite at the start was a hang of scipy:RK45 in review, session 17)
+            # is False (a right-hand side non-finite at the start was a hang of scipy:RK45)
             self._refuse_nonfinite_rate(f0, t0, "cannot start")
         # RK, Radau and BDF read ``self.atol`` at every step; LSODA keeps its tolerances in Fortran
         self._retune = scale is not None and scale.scalar and method != "LSODA"
@@ -372,7 +372,7 @@ def _dynamics_key(problem):
     with them, fuzz seed 95096 (an end stop's 5.7 ms contacts, radius 9 -> 535-757 1/s) came out 2.1e-6 of the range
     off at rtol 1e-10 where it was 1.4e-7 with the start's cap, and 1.1e-8 to 1.1e-7 with this key (every
     ``RECAP_STEPS`` steps inside a contact still sees its stiffness). Why the contacts' own radius made it worse is
-    not understood (a helper's campaign; its segments went from 118 to 120)."""
+    not understood (its segments went from 118 to 120)."""
     return np.asarray(problem.modes).tobytes()
 
 

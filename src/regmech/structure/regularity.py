@@ -1,4 +1,4 @@
-"""The rules of the regular mechanical system (SOURCES.md 003), as checks.
+"""The rules of the regular mechanical system (REFERENCES.md [003]), as checks.
 
 1. Devices (massless) join masses or the ground, never each other: a node
    where devices meet without a mass is an error naming the devices.

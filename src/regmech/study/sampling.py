@@ -1,6 +1,6 @@
 """Parameter sets of a study: grids, Latin hypercube samples, scatter around a nominal point.
 
-Every helper returns a list of dicts (one parameter set per run, in run-id
+Every sampler returns a list of dicts (one parameter set per run, in run-id
 order), which ``sweep`` takes as it is; ``runs_from`` turns any accepted
 ``params`` form (a grid dict, a pandas DataFrame, an iterable of dicts) into
 that list.
