@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import units as units_mod
 from ..errors import RegmechError
+from ..io import save_figure
 
 
 def _figure(nrows=1, ncols=1, figsize=(9, 5), **kw):
@@ -27,7 +28,7 @@ def _figure(nrows=1, ncols=1, figsize=(9, 5), **kw):
 
 def _save(fig, path):
     if path is not None:
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        save_figure(fig, path, "plot")
     return fig
 
 
