@@ -272,3 +272,17 @@ def test_a_re_integration_whose_interpolant_swings_says_so_or_is_redone(tyre_run
     tight, _, _ = quadrature._reintegrate(traj, ["wheel.tyre.power"], k, U[k], modes, 1e-8, scale_u, share * 1e-5,
                                           np.array([True]))
     assert abs(vals[0] - tight[0]) <= est[0]
+
+
+def test_a_magic_formula_tyre_exports_its_slip(tyre_run):
+    """The tyre's slip ratio kappa and slip speed radius w - v are signals with units; the tyre's power is its
+    force times its slip speed."""
+    res = tyre_run
+    w, v = res["wheel.J.w"], res["car.v"]
+    np.testing.assert_allclose(res["wheel.tyre.slip_speed"], 0.236 * w - v, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(res["wheel.tyre.slip"], (0.236 * w - v) / np.sqrt(v ** 2 + 0.25), rtol=1e-12,
+                               atol=1e-12)
+    assert res.unit("wheel.tyre.slip") == "1" and res.unit("wheel.tyre.slip_speed") == "m/s"
+    np.testing.assert_allclose(res["wheel.tyre.f"] * res["wheel.tyre.slip_speed"], res["wheel.tyre.power"],
+                               rtol=1e-9, atol=1e-9 * float(np.max(np.abs(res["wheel.tyre.power"]))))
+    assert res["wheel.tyre.slip"][0] == pytest.approx(0.236 * 13.89 / 0.5)     # spinning on a car at rest
