@@ -29,6 +29,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ._frozen import frozen
 from ._numbers import as_real, describe
 from .errors import ParameterError, UnknownFlangeError
 from .ports import DOMAINS, ROTATIONAL, TRANSLATIONAL, VARIABLE_NAMES, Flange
@@ -57,13 +58,17 @@ class Command:
         return f"{type(self.device).__name__} '{self.device.name}'.command({self.key!r})"
 
 
+#: the range checks a ``Param`` can declare (its docstring)
+CHECKS = ("real", "positive", "nonnegative", "nonzero", "signal", "table", "choice", "any")
+
+
 class Param:
     """A declared parameter with a range check.
 
     check: ``"real"`` (finite), ``"positive"`` (> 0), ``"nonnegative"`` (>= 0),
     ``"nonzero"``, ``"signal"`` (number, Signal or callable of t),
     ``"table"`` ((n, 2) points), ``"choice"`` (one of ``choices``),
-    ``"any"``. ``optional=True`` also admits None.
+    ``"any"`` (``CHECKS``; any other is a ``ParameterError``). ``optional=True`` also admits None.
 
     ``unit``: the SI unit (``"N m/rad"``, ``"kg m^2"``; ``"1"`` dimensionless; for a table the units of its
     columns, ``"(rad/s, N m)"``), written for the class's default kind of flange: an instance of the
@@ -73,14 +78,23 @@ class Param:
     (``signals.as_signal``): its values are checked where the solvers read
     them. ``bounds=(lo, hi)`` (None: open) is a signal's documented range,
     ``bounds_note`` the sentence an error adds to explain it. A table is
-    stored as a read-only copy, so an in-place edit of it raises numpy's
-    "assignment destination is read-only" instead of changing a validated
+    stored as a read-only copy, so an in-place edit of it is a ``ParameterError``
+    naming the component and the parameter instead of a change of a validated
     parameter behind the checks; assign a new table to change it.
     """
 
     def __init__(self, default=REQUIRED, check: str = "real", *, optional: bool = False,
                  unit: str = "", doc: str = "", choices: tuple = (), bounds=None, bounds_note: str = "",
                  command: bool = False):
+        if check not in CHECKS:
+            import difflib
+            close = difflib.get_close_matches(str(check), CHECKS, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else "."
+            raise ParameterError(f"Param(check={check!r}): unknown check{hint} The checks are "
+                                 f"{', '.join(repr(c) for c in CHECKS)}")
+        if check == "choice" and not choices:
+            raise ParameterError("Param(check='choice') needs the allowed values: Param(check='choice', "
+                                 "choices=('a', 'b'))")
         self.default = default
         #: a signal parameter that also takes a ``Command`` (a value computed from the state by another
         #: device, e.g. a controller driving a clutch's normal force)
@@ -143,7 +157,7 @@ class Param:
                 raise ParameterError(f"{where}: parameter '{self.name}' must be finite (x, y) pairs, got {value!r}")
             if np.any(np.diff(arr[:, 0]) <= 0):
                 raise ParameterError(f"{where}: parameter '{self.name}' needs strictly increasing x values")
-            return read_only(arr)
+            return read_only(arr, comp, self.name)
         number = as_real(value)      # any real scalar: int, float, numpy scalars (np.float32, np.int64), ...
         if number is None:
             raise ParameterError(f"{where}: parameter '{self.name}' must be a real number{self._unit(comp)}, got "
@@ -183,11 +197,11 @@ class Param:
         return kind + unit + (" | None" if self.optional else "")
 
 
-def read_only(value) -> np.ndarray:
-    """A read-only float copy of an array parameter (validated values cannot be edited in place)."""
-    arr = np.array(value, dtype=float)
-    arr.setflags(write=False)
-    return arr
+def read_only(value, comp=None, name: str | None = None) -> np.ndarray:
+    """A read-only float copy of an array parameter (validated values cannot be edited in place); an edit in
+    place is a ``ParameterError`` naming ``comp`` and the parameter ``name`` (``regmech._frozen``)."""
+    owner = None if comp is None else f"{type(comp).__name__} '{comp.name}'"
+    return frozen(value, owner, name)
 
 
 _PARAMETER_HEADING = "Parameters (keywords, SI units)"

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import RegmechError
+from .io import save_figure
 
 MASS_COLOUR = "#dbe7f5"
 FRICTION_COLOUR = "#c44e52"
@@ -277,7 +278,7 @@ def draw_model(model, path=None, ax=None, max_columns: int = 18, figsize=None, t
     ax.set_title(title or f"{model.name}: dynamic scheme ({n_mass} masses, {n_dev} devices, {n_fr} with "
                  f"friction)", loc="left", fontsize=10)
     if path is not None:
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        save_figure(fig, path, "draw")
     return fig
 
 

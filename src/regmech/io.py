@@ -36,6 +36,7 @@ cannot continue the simulation.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -122,12 +123,30 @@ def save_result(res: Result, path, names=None) -> Path:
         "model_name": res.model_name, "time": t.reshape(-1, 1), "data": data, "names": _cell(names),
         "units": _cell(units), "events": events, "stats": stats,
     }
-    try:
+    with writing(path, "res.save"):
         scipy.io.savemat(path, content, do_compression=True, oned_as="column")
-    except OSError as exc:
-        raise RegmechError(f"res.save: cannot write '{path}' ({exc}); check the folder exists and is writable") \
-            from None
     return path
+
+
+@contextlib.contextmanager
+def writing(path, what: str):
+    """Around the writing of a file to ``path`` by ``what`` (``"res.to_csv"``): an ``OSError`` (a folder that does
+    not exist, no permission, a full disk) is a ``RegmechError`` naming the path and the fix, not the bare
+    ``FileNotFoundError``."""
+    try:
+        yield
+    except OSError as exc:
+        folder = Path(path).expanduser().resolve().parent
+        why = (f"the folder '{folder}' does not exist; create it first (os.makedirs(folder, exist_ok=True)) or "
+               f"give a path in an existing folder" if not folder.is_dir()
+               else "check the folder is writable and the path names a file")
+        raise RegmechError(f"{what}: cannot write '{path}' ({exc.strerror or exc}): {why}") from None
+
+
+def save_figure(fig, path, what: str):
+    """Write the matplotlib figure ``fig`` as a PNG to ``path`` (``writing`` names a failure)."""
+    with writing(path, what):
+        fig.savefig(path, dpi=120, bbox_inches="tight")
 
 
 def _mode_name(ev: Event, code: int) -> str:

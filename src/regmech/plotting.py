@@ -33,6 +33,7 @@ import numpy as np
 
 from . import units as units_mod
 from .errors import ParameterError, RegmechError
+from .io import save_figure
 from .modes import MODE_NAMES
 
 #: colour of each mode in the mode strips (Free light: nothing transmitted; Stuck dark: locked)
@@ -185,7 +186,7 @@ def plot_result(res, names=None, *, ax=None, path=None, title=None, events=True,
         ax.set_xlabel("time [s]")
         ax.set_title(title or res.model_name)
         if path is not None:
-            ax.figure.savefig(path, dpi=120, bbox_inches="tight")
+            save_figure(ax.figure, path, "res.plot")
         return ax
 
     n_ax, n_strip = len(groups), len(strips)
@@ -213,7 +214,7 @@ def plot_result(res, names=None, *, ax=None, path=None, title=None, events=True,
     axes[0].set_title(head, loc="left", fontsize=11, pad=14 if events == "annotate" and res.events else 6)
     fig.align_ylabels(axes)
     if path is not None:
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        save_figure(fig, path, "res.plot")
     return fig
 
 

@@ -416,8 +416,9 @@ class Result:
     def to_csv(self, path, names=None, units=None) -> None:
         """Write ``time`` and the signals to a CSV file (full precision). ``units`` as in
         ``to_dataframe``: headers ``"name [unit]"`` and values in those units."""
+        from .io import writing
         cols = self._columns(names, units)
-        with open(path, "w", newline="") as fh:
+        with writing(path, "res.to_csv"), open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow([h for h, _ in cols])
             for row in zip(*(v for _, v in cols)):

@@ -50,6 +50,7 @@ from typing import Callable
 
 import numpy as np
 
+from ._frozen import frozen
 from .errors import ParameterError, RegmechError, SimulationError
 
 __all__ = ["Signal", "Constant", "Step", "Ramp", "Sine", "Table", "Pulse", "Function", "as_signal"]
@@ -303,8 +304,7 @@ class Table(Signal):
             raise ParameterError("Table: a slope between two points overflows (times too close for the change of "
                                  "value); give the jump as a repeated time instead")
         # a read-only copy: editing the caller's array (or this one) cannot change the signal afterwards
-        arr = arr.copy()
-        arr.setflags(write=False)
+        arr = frozen(arr, "Table", "points")
         self.points = arr
         self._t = arr[:, 0]
         self._v = arr[:, 1]
@@ -545,6 +545,14 @@ class Function(_Bound, Signal):
 
     def _source(self) -> str:
         return f"the callable {getattr(self.func, '__qualname__', None) or repr(self.func)}"
+
+    def __getstate__(self):
+        # a lambda or a nested function has no name pickle could find it by: it is pickled by value
+        # (``regmech._portable``), and what cannot be pickled is named with the component and the signal
+        from ._portable import portable
+        state = self.__dict__.copy()
+        state["func"] = portable(self.func, self._label())
+        return state
 
     def value(self, t, left=False):
         try:

@@ -13,7 +13,8 @@ import pytest
 
 import regmech as rm
 from regmech.components import (BearingFriction, Clutch, Engine, Fixed, Force, FrictionContact, Inertia,
-                                 LinearSpeed, LossyGear, Mass, Position, Speed, Spring, SpringDamper, Torque)
+                                 LinearSpeed, LossyGear, Mass, Position, Speed, Spring, SpringDamper, Torque,
+                                 TwoFlangeCompliant)
 from regmech.library import coupled_clutches
 from regmech.signals import Function, Pulse, Ramp, Signal, Sine, Step, Table, as_signal
 
@@ -467,3 +468,46 @@ def test_bearing_friction_refuses_a_negative_torque_table():
     # regression: a negative friction torque was accepted and drove the motion it should resist
     with pytest.raises(rm.ParameterError, match="BearingFriction 'b'.*tau_table"):
         BearingFriction("b", tau_table=[[0.0, -2.0], [1.0, -3.0]]).validate()
+
+
+# -------------------------------------------------------------- non-finite values named where and what
+class _RunawaySpring(TwoFlangeCompliant):
+    """A softening spring whose force overflows past a deflection of 36 rad (exp(20 * 36) > 1e308)."""
+
+    c = rm.Param(check="real", unit="N m/rad")
+
+    def law(self, rel, rel_dot):
+        import sympy
+        return self.c * rel - sympy.exp(20.0 * rel)
+
+
+def _runaway():
+    m = rm.Model("runaway")
+    f = m.add(Fixed("f"))
+    k = m.add(_RunawaySpring("spring", c=100.0))
+    J = m.add(Inertia("J", J=1.0, phi0=0.0, w0=0.0))
+    m.connect(f.flange, k.flange_a)
+    m.connect(k.flange_b, J.flange_a)
+    return m
+
+
+def test_non_finite_values_after_the_start_say_when_and_what():
+    """Every finite parameter, a motion that ran away by t = 0.104 s: the message said "non-finite initial values at
+    t=0.0 ... check parameters for NaN/inf". It names the instant, the quantity and its mass or device."""
+    c = _runaway().compile()
+    y, _ = c.initial_y(0.0)
+    x, v, _, _, z = c.unpack(y, y)
+    modes = c.modes0
+    v_bad = v.copy()
+    v_bad[0] = np.inf
+    with pytest.raises(rm.SimulationError) as err:
+        c.assemble_y(0.104, x, v_bad, z, modes)
+    msg = str(err.value)
+    assert "t=0.104 s" in msg and "the speed of J" in msg and "ran away" in msg and "initial" not in msg
+    # a finite state whose law overflows: the device is named, with the acceleration it gives
+    x_far = x.copy()
+    x_far[0] = 40.0
+    with pytest.raises(rm.SimulationError) as err:
+        c.assemble_y(0.104, x_far, v, z, modes)
+    msg = str(err.value)
+    assert "t=0.104 s" in msg and "the force of spring" in msg and "from a finite state" in msg

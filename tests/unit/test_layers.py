@@ -30,8 +30,8 @@ LAYERS = [
     {"solvers"},
     {"analysis", "bench", "study", "cli", "scene", "sweep", "library", "draw", "docgen", "__root__"},
 ]
-CORE = {"errors", "_numbers", "ports", "modes", "units", "signals", "component", "result", "report", "io",
-        "plotting", "data"}
+CORE = {"errors", "_numbers", "_frozen", "_portable", "ports", "modes", "units", "signals", "component", "result",
+        "report", "io", "plotting", "data"}
 NEVER_COMPONENTS = {"compile", "hybrid", "solvers"}
 RANK = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
 

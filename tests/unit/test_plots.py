@@ -195,6 +195,24 @@ def test_campbell_crossings_and_plot(first_lin, tmp_path):
         campbell([10.0], [1.0], (3000.0, 100.0))
 
 
+def test_campbell_against_another_shafts_speed_with_the_operating_point(tmp_path):
+    """The abscissa is the speed of a shaft turning at ``ratio`` times the engine (behind a gear): engine order k
+    excites f = k n_shaft / (60 ratio), resonances are read in that shaft's rpm, and the operating point is drawn."""
+    d = campbell([25.0], [2.0], (0.0, 1000.0), shaft="gearbox output", ratio=0.25, operating_rpm=300.0)
+    (o, m, fh, n), = d.crossings
+    assert n == pytest.approx(60.0 * 25.0 * 0.25 / 2.0, rel=1e-9) and fh == pytest.approx(25.0)
+    assert d.operating_point() == [(2.0, pytest.approx(2.0 * 300.0 / 15.0))]
+    fig = d.plot(tmp_path / "c.png")
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "gearbox output speed [rpm]"
+    assert any("operating point 300 rpm" in t.get_text() for t in ax.texts)
+    assert any(len(line.get_xdata()) == 2 and np.allclose(line.get_xdata(), 300.0) for line in ax.lines)
+    with pytest.raises(rm.ParameterError, match="ratio"):
+        campbell([25.0], [2.0], ratio=0.0)
+    with pytest.raises(rm.ParameterError, match="operating_rpm"):
+        campbell([25.0], [2.0], operating_rpm=float("nan"))
+
+
 @pytest.mark.slow
 def test_modes_cli_writes_labelled_plots_and_campbell(tmp_path, capsys):
     from regmech.analysis.cli import modes_main

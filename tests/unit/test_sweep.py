@@ -290,3 +290,21 @@ def test_cli_sweeps_a_scene_with_default_outputs_and_resumes(tmp_path, capsys):
     assert main(argv) == 0 and "2 found in" in capsys.readouterr().out
     assert main(["sweep", "coupled_clutches", "--param", "nope=1", "--t-end", "0.4", "--out", str(out)]) == 2
     assert "has no parameter 'nope'" in capsys.readouterr().err
+
+
+def test_a_dask_sweep_in_a_script_without_the_main_guard_is_named(tmp_path):
+    """Dask's local workers run the main script again: without ``if __name__ == "__main__":`` the sweep died with
+    40 lines ending "RuntimeError: Nanny failed to start". Now a ParameterError names the guard and the line."""
+    pytest.importorskip("dask.distributed")
+    import subprocess
+    import sys
+    script = tmp_path / "study.py"
+    script.write_text("import regmech as rm\n"
+                      "from regmech.library import coupled_clutches\n"
+                      "table = rm.sweep(coupled_clutches, {'fn_max': [10, 20]}, ['J4.w'], executor='dask', workers=1,\n"
+                      "                 progress=False, t_end=0.5)\n")
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert out.returncode != 0
+    assert "Nanny failed to start" not in out.stderr
+    last = out.stderr.strip().splitlines()[-1]
+    assert last.startswith("regmech.errors.ParameterError") and "__name__ == \"__main__\"" in last and "line 3" in last

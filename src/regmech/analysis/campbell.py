@@ -12,6 +12,12 @@ or, for natural frequencies that change with speed (a centrifugal pendulum,
 a speed-dependent stiffness), a callable ``f(speed_rpm)`` returning either;
 then the frequencies are evaluated on the speed grid and the crossings found
 between grid points by linear interpolation.
+
+The abscissa may be any shaft's speed: ``shaft="gearbox output"`` with
+``ratio`` its speed per engine speed (the orders stay engine orders, so the
+rays are ``f = k n_shaft / (60 ratio)`` and the resonance speeds are the
+shaft's). ``operating_rpm`` (in that shaft's speed) marks the operating
+point: a vertical line, and the excitation frequencies of the orders there.
 """
 
 from __future__ import annotations
@@ -36,6 +42,21 @@ class CampbellDiagram:
     orders: np.ndarray
     crossings: list = field(default_factory=list)
     model_name: str = ""
+    #: the shaft whose speed is the abscissa, and its speed per engine speed (the orders' reference)
+    shaft: str = "engine"
+    ratio: float = 1.0
+    #: the operating point [rpm of ``shaft``], or None
+    operating_rpm: float | None = None
+
+    def order_hz(self, order: float, speed_rpm):
+        """Frequency [Hz] of engine order ``order`` at ``speed_rpm`` of the abscissa's shaft: ``k n / (60 ratio)``."""
+        return order * np.asarray(speed_rpm, float) / (60.0 * self.ratio)
+
+    def operating_point(self) -> list:
+        """``(order, frequency [Hz])`` of every order at the operating point (empty without one)."""
+        if self.operating_rpm is None:
+            return []
+        return [(float(k), float(self.order_hz(k, self.operating_rpm))) for k in self.orders]
 
     def table(self) -> Table:
         data = np.array([[o, m, f, n] for o, m, f, n in self.crossings], float).reshape(-1, 4)
@@ -80,10 +101,21 @@ def _orders(orders) -> np.ndarray:
         return np.array([np.nan])
 
 
-def campbell(modes, orders, speed_rpm=(500.0, 6000.0), n_speeds: int = 200, model_name: str = "") -> CampbellDiagram:
+def campbell(modes, orders, speed_rpm=(500.0, 6000.0), n_speeds: int = 200, model_name: str = "", *,
+             shaft: str = "engine", ratio: float = 1.0, operating_rpm=None) -> CampbellDiagram:
     """Campbell diagram of ``modes`` (see the module docstring) and engine ``orders`` (numbers, or
     ``(order, amplitude, phase)`` tuples as ``order_sweep`` takes them) over ``speed_rpm`` (``(low, high)``
-    [rpm] or the grid itself)."""
+    [rpm] or the grid itself) of the shaft ``shaft``, whose speed is ``ratio`` times the engine's (a callable
+    ``modes`` is called with that shaft's speed); ``operating_rpm`` marks the operating point."""
+    if isinstance(ratio, bool) or not isinstance(ratio, (int, float, np.floating)) or not np.isfinite(ratio) \
+            or ratio == 0:
+        raise ParameterError(f"campbell: ratio is the shaft's speed per engine speed, a finite non-zero number "
+                             f"(a gear ratio's inverse), got {ratio!r}")
+    ratio = abs(float(ratio))
+    if operating_rpm is not None and (isinstance(operating_rpm, bool) or not isinstance(
+            operating_rpm, (int, float, np.floating)) or not np.isfinite(operating_rpm) or operating_rpm < 0):
+        raise ParameterError(f"campbell: operating_rpm is the operating speed of shaft '{shaft}' [rpm], a finite "
+                             f"number >= 0, got {operating_rpm!r}")
     ords = _orders(orders)
     if ords.size == 0 or not np.all(np.isfinite(ords)) or np.any(ords <= 0):
         raise ParameterError(f"campbell: orders must be positive numbers (e.g. [1, 2, 4]), got {orders!r}")
@@ -104,12 +136,13 @@ def campbell(modes, orders, speed_rpm=(500.0, 6000.0), n_speeds: int = 200, mode
         nat = np.tile(f, (len(grid), 1))
     crossings = []
     for k in ords:
-        ray = k * grid / 60.0
+        ray = k * grid / (60.0 * ratio)
         for j, m in enumerate(numbers):
             g = ray - nat[:, j]
             for i in np.nonzero((g[:-1] <= 0) & (g[1:] > 0) | (g[:-1] < 0) & (g[1:] >= 0))[0]:
                 w = -g[i] / (g[i + 1] - g[i])
                 n = grid[i] + w * (grid[i + 1] - grid[i])
-                crossings.append((float(k), m, float(k * n / 60.0), float(n)))
+                crossings.append((float(k), m, float(k * n / (60.0 * ratio)), float(n)))
     crossings.sort(key=lambda c: c[3])
-    return CampbellDiagram(grid, nat, numbers, ords, crossings, model_name)
+    return CampbellDiagram(grid, nat, numbers, ords, crossings, model_name, str(shaft), ratio,
+                           None if operating_rpm is None else float(operating_rpm))

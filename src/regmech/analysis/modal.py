@@ -196,11 +196,12 @@ class ModalResult:
         from .sensitivity import sensitivities
         return sensitivities(self)
 
-    def campbell(self, orders, speed_rpm=(500.0, 6000.0)):
+    def campbell(self, orders, speed_rpm=(500.0, 6000.0), **options):
         """Campbell diagram of these modes against engine ``orders`` over ``speed_rpm`` [rpm]
-        (``analysis.campbell``): ``.crossings``, ``.table()``, ``.plot(path)``."""
+        (``analysis.campbell``; ``options``: ``shaft`` and ``ratio`` for another shaft's speed as the abscissa,
+        ``operating_rpm``): ``.crossings``, ``.table()``, ``.plot(path)``."""
         from .campbell import campbell
-        return campbell(self, orders, speed_rpm, model_name=self.lin.compiled.model.name)
+        return campbell(self, orders, speed_rpm, model_name=self.lin.compiled.model.name, **options)
 
     @property
     def all_rigid(self) -> bool:

@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import units as units_mod
 from ..errors import RegmechError
+from ..io import save_figure
 
 
 def _figure(nrows=1, ncols=1, figsize=(9, 5), **kw):
@@ -27,7 +28,7 @@ def _figure(nrows=1, ncols=1, figsize=(9, 5), **kw):
 
 def _save(fig, path):
     if path is not None:
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        save_figure(fig, path, "plot")
     return fig
 
 
@@ -286,8 +287,8 @@ def plot_campbell(diagram, path=None, ax=None):
     else:
         fig = ax.figure
     n = diagram.speeds_rpm
-    top_order = float(np.max(diagram.orders)) * float(n[-1]) / 60.0
-    low_order = float(np.min(diagram.orders)) * float(n[-1]) / 60.0
+    top_order = float(diagram.order_hz(float(np.max(diagram.orders)), n[-1]))
+    low_order = float(diagram.order_hz(float(np.min(diagram.orders)), n[-1]))
     nat_max = float(np.max(diagram.natural_hz)) if diagram.natural_hz.size else 0.0
     # up to the highest mode an order reaches (modes far above every order are left out, said in the title),
     # and at least the whole ray of the lowest order
@@ -302,12 +303,21 @@ def plot_campbell(diagram, path=None, ax=None):
         ax.text(n[-1], f[-1], f"  mode {m}: {f[-1]:.3g} Hz", fontsize=8, va="center", ha="left", color="tab:blue")
     top_exits = []
     for k in diagram.orders:
-        f = k * n / 60.0
+        f = diagram.order_hz(k, n)
         ax.plot(n, f, color="0.4", lw=1.0, ls="--")
         if f[-1] <= ylim:
             ax.text(n[-1], f[-1], f" order {k:g}", fontsize=8, color="0.25", ha="left", va="center")
         else:                                    # the ray leaves through the top: its order written there
-            top_exits.append((60.0 * ylim / k, f"{k:g}"))
+            top_exits.append((60.0 * diagram.ratio * ylim / k, f"{k:g}"))
+    if diagram.operating_rpm is not None:
+        # the operating point: a vertical line and each order's excitation there
+        op = diagram.operating_rpm
+        ax.axvline(op, color="tab:green", lw=1.4)
+        ax.text(op, ylim, f"operating point {op:.0f} rpm", fontsize=8, color="tab:green", rotation=90,
+                ha="right", va="top")
+        for k, fh in diagram.operating_point():
+            if fh <= ylim:
+                ax.plot(op, fh, "D", color="tab:green", ms=5)
     _top_labels(ax, top_exits, float(n[-1] - n[0]))
     shown = [c for c in diagram.crossings if c[2] <= ylim]
     for i, (order, m, fh, rpm) in enumerate(shown, start=1):
@@ -318,12 +328,12 @@ def plot_campbell(diagram, path=None, ax=None):
               for i, (o, m, fh, rpm) in enumerate(shown, start=1)])
     ax.set_xlim(float(n[0]), float(n[-1]))
     ax.set_ylim(0.0, ylim)
-    ax.set_xlabel("engine speed [rpm]")
+    ax.set_xlabel(f"{diagram.shaft} speed [rpm]")
     ax.set_ylabel("frequency [Hz]")
     ax.grid(True, alpha=0.25)
     title = f"{diagram.model_name + ': ' if diagram.model_name else ''}Campbell diagram: natural frequencies " \
-            f"(solid), engine orders f = k n / 60 (dashed,\nk at the top or the right end), resonances (circles, " \
-            f"numbered, listed below)"
+            f"(solid), engine orders f = k n / {60 * diagram.ratio:.4g} (dashed,\nk at the top or the right end), " \
+            f"resonances (circles, numbered, listed below)"
     if hidden:
         title += f"\n{hidden} higher mode(s) above {ylim:.3g} Hz not drawn"
     ax.set_title(title, loc="left", fontsize=10, pad=14)

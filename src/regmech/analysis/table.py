@@ -55,7 +55,9 @@ class Table:
 
     def to_csv(self, path) -> None:
         import csv
-        with open(path, "w", newline="") as fh:
+
+        from ..io import writing
+        with writing(path, "Table.to_csv"), open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow([self.index_name or ""] + [str(c) for c in self.columns])
             for label, row in zip(self.index, self.data):

@@ -153,6 +153,25 @@ def _lambdify(args, exprs):
     return sympy.lambdify(args, exprs, modules="numpy", printer=_KernelPrinter, cse=True)
 
 
+def _law_expr(where: str, what: str, x, known: set):
+    """``x``, what a device's law returned, as a sympy expression of its arguments, parameters, states and time
+    (``known``); a string, or anything naming other symbols, is a ``ModelError`` naming the device (a string
+    ``"x"`` became the symbol x, and the compiled law failed at its first call with a NameError)."""
+    if isinstance(x, str):
+        raise ModelError(f"{where}: {what} returned the string {x!r}; a law returns an expression of its "
+                         f"arguments and self.<parameter> (e.g. self.c * rel), not text")
+    try:
+        expr = sympy.sympify(x)
+    except (sympy.SympifyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{where}: {what} returned {x!r}, which is not an expression ({exc}); a law returns an "
+                         f"expression of its arguments and self.<parameter>") from exc
+    stray = sorted(str(sym) for sym in getattr(expr, "free_symbols", ()) if sym not in known)
+    if stray:
+        raise ModelError(f"{where}: {what} returned {expr}, which uses the unknown symbol(s) {stray}; a law may use "
+                         f"only its arguments, self.<parameter>, its states and self.time")
+    return expr
+
+
 def template_for(dev: Device) -> Template:
     cls = type(dev)
     key = (cls, dev.device_kind(), len(dev.rows()))
@@ -171,17 +190,23 @@ def template_for(dev: Device) -> Template:
     syms.update({s: zs for s, zs in zip(states, z)})
     syms["time"] = t
     proxy = _SymbolicSelf(cls, syms)
+    where = f"{cls.__name__} '{dev.name}'"
+    known = set(e) | set(de) | set(z) | {t} | set(syms.values())
     try:
-        taus = [sympy.sympify(x) for x in cls.laws(proxy, list(e), list(de))]
-        dz = [sympy.sympify(x) for x in cls.derivatives(proxy, list(e), list(de))]
-        pot = sympy.sympify(cls.potential(proxy, list(e)))
+        taus = [_law_expr(where, "laws()", x, known) for x in cls.laws(proxy, list(e), list(de))]
+        dz = [_law_expr(where, "derivatives()", x, known) for x in cls.derivatives(proxy, list(e), list(de))]
+        pot = _law_expr(where, "potential()", cls.potential(proxy, list(e)), known)
         surfaces = list(cls.switching_surfaces(proxy, list(e), list(de)))
-        surf = [sympy.sympify(g) for g, _ in surfaces]
+        surf = [_law_expr(where, "switching_surfaces()", g, known) for g, _ in surfaces]
         surf_codes = tuple(int(code) for _, code in surfaces)
-    except (TypeError, AttributeError, ValueError, sympy.SympifyError) as exc:
+    except ModelError:
+        raise
+    except Exception as exc:
+        # the user's own law raised (a ZeroDivisionError, a KeyError, a numpy function given a symbol): named
         raise ModelError(
-            f"{cls.__name__}: its law could not be written symbolically ({exc}); laws must use arithmetic and "
-            f"sympy functions (sympy.sin, sympy.Piecewise, ...) of the arguments and self.<parameter>") from exc
+            f"{where}: its law could not be written symbolically ({type(exc).__name__}: {exc}); laws must use "
+            f"arithmetic and sympy functions (sympy.sin, sympy.Piecewise, ...) of the arguments and "
+            f"self.<parameter>") from exc
     if len(taus) != k:
         raise ModelError(f"{cls.__name__}: laws() returned {len(taus)} forces for {k} rows")
     if len(dz) != len(states):

@@ -550,9 +550,9 @@ class CompiledSystem:
         guess_v = np.where(np.isfinite(st.start_vel), st.start_vel, 0.0)
         x, v = self.project(t0, guess_x, guess_v, st.start_pos, st.start_vel, modes, starts=(0, 1))
         z = self.state_start.copy()
-        return self.assemble_y(t0, x, v, z, modes)
+        return self.assemble_y(t0, x, v, z, modes, start=True)
 
-    def assemble_y(self, t, x, v, z, modes, rates=True, known=None):
+    def assemble_y(self, t, x, v, z, modes, rates=True, known=None, start=False):
         """Consistent (y, y') from positions, velocities and device states.
 
         The derivatives of the algebraic unknowns (dummy accelerations and
@@ -560,7 +560,8 @@ class CompiledSystem:
         first predictor: left at zero, a force that starts growing linearly
         fails the error test at any step size, so they are taken from a
         forward difference along the motion (``rates=False`` skips that: only IDA's
-        predictor uses them). ``known``: ``accelerations(t, x, v, z, modes)`` when the caller has it.
+        predictor uses them). ``known``: ``accelerations(t, x, v, z, modes)`` when the caller has it. ``start``:
+        the values are a run's start (``initial_y``), which a non-finite value's message says.
         """
         a, lam, dz = self.accelerations(t, x, v, z, modes) if known is None else known
         y = np.zeros(self.N)
@@ -575,11 +576,45 @@ class CompiledSystem:
                 yp[self._sad] = (a2[self.Dv] - a[self.Dv]) / d
                 yp[self._slam] = (lam2 - lam) / d
         if not (np.isfinite(y).all() and np.isfinite(yp).all()):
-            bad = [self.structure.coord_names[k] for k in range(self.n)
-                   if not (np.isfinite(a[k]) and np.isfinite(x[k]) and np.isfinite(v[k]))]
-            raise SimulationError(f"non-finite initial values at t={t} (involving {bad or 'device states'}); "
-                                  f"check parameters and signals for NaN/inf")
+            raise SimulationError(self._non_finite_message(t, x, v, z, a, lam, dz, start))
         return y, yp
+
+    def _non_finite_message(self, t, x, v, z, a, lam, dz, start):
+        """What ``assemble_y`` found non-finite at ``t``, by name: the positions, speeds and accelerations of which
+        masses, the forces of which devices' constraints, which device states; and whether the state itself was
+        already non-finite (the motion ran away before ``t``) or only what the laws made of a finite state."""
+        st = self.structure
+        names = st.coord_names
+        cons = st.position + st.speed + st.friction
+
+        def listed(label, values, name_of):
+            bad = np.flatnonzero(~np.isfinite(np.asarray(values, float)))
+            if not len(bad):
+                return []
+            shown = ", ".join(dict.fromkeys(name_of(int(k)) for k in bad[:6]))
+            return [f"{label} of {shown}{' ...' if len(bad) > 6 else ''}"]
+
+        state = listed("the position", x, names.__getitem__) + listed("the speed", v, names.__getitem__) + \
+            listed("the state", z, self.state_names.__getitem__)
+        try:
+            tau = self.kernel_outputs(x, v, z, t)[2] if not state else np.zeros(0)
+        except Exception:       # the message must not fail where the laws do: their forces are then not named
+            tau = np.zeros(0)
+        laws = listed("the force", tau, lambda i: st.compliant[i].device.name) + \
+            listed("the acceleration", a, names.__getitem__) + \
+            listed("the constraint force", lam, lambda j: cons[j].device.name) + \
+            listed("the rate of the state", dz, self.state_names.__getitem__)
+        when = f"at the start t={float(t):.9g} s" if start else f"at t={float(t):.9g} s"
+        if state:
+            why = ("the start values are not finite: check the components' start values and parameters" if start
+                   else "the motion itself is no longer finite there: the model ran away before this instant (a "
+                        "law or signal that grows without bound, an unstable loop); look at the run up to it with "
+                        "a shorter t_end")
+            return f"non-finite values {when}: {'; '.join(state)}; {why}"
+        what = "; ".join(laws) or "the rates of the algebraic unknowns"
+        return (f"non-finite values {when}: {what}, from a finite state (positions, speeds and device states): "
+                f"the laws of the components named give no number there (an overflow, 0/0, a signal out of its "
+                f"range); check their parameters and signals")
 
     # --------------------------------------------------------------- ODE form
     def ode_size(self) -> int:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 import sympy
 
+from .._frozen import frozen
 from ..component import Device, Param
 from ..errors import ParameterError
 from ..ports import ROTATIONAL
@@ -151,8 +152,7 @@ def _grid(comp, name, value) -> np.ndarray:
             or np.any(np.diff(arr) <= 0):
         raise ParameterError(f"ElectricMotor '{comp.name}': '{name}' must be at least two finite, non-negative, "
                              f"strictly increasing values, got {value!r}")
-    arr.setflags(write=False)
-    return arr
+    return frozen(arr, f"ElectricMotor '{comp.name}'", name)
 
 
 def envelope(w, tau_max: float, p_max: float):
@@ -259,8 +259,7 @@ class ElectricMotor(Device):
                 raise ParameterError(f"ElectricMotor '{self.name}': '{name}' must be a table of efficiencies in "
                                      f"(0, 1] of shape (len(eta_speeds), len(eta_torques)) = ({len(ws)}, {len(ts)}), "
                                      f"got {val!r}")
-            arr.setflags(write=False)
-            self._values[name] = arr
+            self._values[name] = frozen(arr, f"ElectricMotor '{self.name}'", name)
 
     def rows(self):
         # e = phi_support - phi_flange (as Torque): flange.tau = -tau, the rotor receives +tau

@@ -34,6 +34,7 @@ and the holding torques are the hybrid layer's (``regmech.hybrid``: its
 from __future__ import annotations
 
 import bisect
+import math
 
 import numpy as np
 
@@ -229,7 +230,7 @@ class _MuMixin:
     def _mu(self, w_abs):
         law = self._values.get("mu_law")
         if law is not None:
-            return law.mu(w_abs)
+            return self._law_mu(law, w_abs)
         tab = self._values.get("mu_table")
         if tab is None:
             return self._values["mu"], 0.0
@@ -243,6 +244,25 @@ class _MuMixin:
         if w_abs <= ws[0]:
             return float(mus[0]), 0.0
         return float(mus[k] + slope * (w_abs - ws[k])), float(slope)
+
+    def _law_mu(self, law, w_abs):
+        """``law.mu(w_abs)`` checked: a law's own exception, a result that is not two finite numbers ``(mu, dmu/dw)``
+        is a ``SimulationError`` naming the device and the law (a user's ``FrictionLaw`` subclass)."""
+        from ..errors import RegmechError, SimulationError
+        where = f"{type(self).__name__} '{self.name}': mu_law {type(law).__name__}"
+        try:
+            mu, dmu = law.mu(w_abs)
+            mu, dmu = float(mu), float(dmu)
+        except RegmechError:
+            raise
+        except Exception as exc:
+            raise SimulationError(f"{where}: mu({w_abs!r}) raised {type(exc).__name__}: {exc}; a friction law's mu(w) "
+                                  f"must return (mu, d mu / d w), two finite numbers, for every speed w >= 0") \
+                from exc
+        if not (math.isfinite(mu) and math.isfinite(dmu)):
+            raise SimulationError(f"{where}: mu({w_abs!r}) returned ({mu!r}, {dmu!r}); a friction law must return "
+                                  f"finite numbers (mu, d mu / d w) for every speed w >= 0")
+        return mu, dmu
 
     def _constant_mu(self):
         """mu when it does not depend on the relative speed (a constant, or a one-point table), else None; None
@@ -501,7 +521,7 @@ class LossyGear(FrictionDevice):
                                  f"tau_bf1, tau_bf2), got {self._values['loss_table']!r}")
         if np.any(tab[:, 1:3] <= 0) or np.any(tab[:, 1:3] > 1) or np.any(np.diff(tab[:, 0]) <= 0) or tab[0, 0] < 0:
             raise ParameterError(f"LossyGear '{self.name}': efficiencies must lie in (0, 1] and speeds increase from >= 0")
-        tab = read_only(tab)                 # the validated table, not the caller's (editable) array
+        tab = read_only(tab, self, "loss_table")   # the validated table, not the caller's (editable) array
         self._values["loss_table"] = tab
         self._table = tab
         # the lookup's plain floats (``_interp``), made with the table: a new table gets new ones

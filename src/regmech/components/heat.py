@@ -51,6 +51,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._frozen import frozen
+
 HEAT_UNITS = {"heat_flow": "W", "heat": "J"}
 
 
@@ -135,8 +137,7 @@ class ThermalMass:
                     or np.any(np.diff(tab[:, 0]) <= 0) or np.any(tab[:, 1] < 0):
                 raise ParameterError(f"ThermalMass: fade must be (T [K], factor >= 0) points with increasing T, "
                                      f"got {fade!r}")
-            tab.setflags(write=False)
-            self.fade = tab
+            self.fade = tab = frozen(tab, "ThermalMass", "fade")
 
     def factor(self, T: float) -> tuple[float, float]:
         """``(fade(T), d fade / dT)`` [1, 1/K]."""

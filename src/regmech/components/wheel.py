@@ -20,6 +20,7 @@ with a mass on each side in every state (Position 3).
 
 from __future__ import annotations
 
+import numpy as np
 import sympy
 
 from ..component import Device, Param, Subsystem
@@ -105,9 +106,18 @@ class MagicFormulaTyre(Device):
     v_eps = Param(0.5, check="positive", unit="m/s", doc="slip smoothing speed at standstill")
     flanges = (("hub", ROTATIONAL), ("axle", TRANSLATIONAL))
     rel_names = {ROTATIONAL: (None, None, None, None)}
+    #: exported signals: ``slip`` the slip ratio kappa [1] of the law, ``slip_speed`` = radius w - v [m/s] (the
+    #: tread's speed over the road, positive when the wheel drives), ``f`` the force on the axle [N]
+    derived_units = {"slip": "1", "slip_speed": "m/s", "f": "N"}
 
     def rows(self):
         return [{"hub": 1.0}, {"axle": 1.0}]
+
+    def derived(self, t, left, e, de, tau, z):
+        w, v = np.asarray(de[0], float), np.asarray(de[1], float)
+        slip_speed = self.radius * w - v
+        return {"slip": slip_speed / np.sqrt(v ** 2 + self.v_eps ** 2), "slip_speed": slip_speed,
+                "f": -np.asarray(tau[1], float)}
 
     def laws(self, e, de):
         w, v = de

@@ -21,7 +21,9 @@ was computed is lost.
 
 from __future__ import annotations
 
+import ast
 import os
+import sys
 from concurrent.futures import Executor, as_completed
 
 from ..errors import ParameterError
@@ -130,6 +132,7 @@ class DaskBackend:
             raise ParameterError("sweep(executor='dask') needs dask.distributed: pip install 'regmech[dask]'") from None
         self._owned = []
         if executor == "dask":
+            _refuse_unguarded_script()
             cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
                                    processes=True, dashboard_address=None)
             self.client = Client(cluster)
@@ -168,3 +171,50 @@ class DaskBackend:
         self.payload = None
         for obj in self._owned:
             obj.close()
+
+
+def _main_line():
+    """``(script path, line)`` of the main script's top-level statement that led to this call, or None (an
+    interactive session, ``python -c``, a call not made from the main script)."""
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if not path:
+        return None
+    frame, line = sys._getframe(1), None
+    while frame is not None:
+        if frame.f_globals is main.__dict__ and frame.f_code.co_name == "<module>":
+            line = frame.f_lineno          # the outermost one: a function called from the top level counts too
+        frame = frame.f_back
+    return None if line is None else (path, line)
+
+
+def _is_main_test(test) -> bool:
+    """``__name__ == "__main__"`` (either way round)."""
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1 and isinstance(test.ops[0], ast.Eq)):
+        return False
+    sides = [test.left, test.comparators[0]]
+    return any(isinstance(a, ast.Name) and a.id == "__name__" for a in sides) and \
+        any(isinstance(a, ast.Constant) and a.value == "__main__" for a in sides)
+
+
+def _refuse_unguarded_script():
+    """A LocalCluster's worker processes start by running the main script again (multiprocessing's spawn): a
+    sweep called at its top level outside ``if __name__ == "__main__":`` would start again in each of them, and
+    Dask reports a RuntimeError "Nanny failed to start" after 40 lines. Refused before, by name."""
+    where = _main_line()
+    if where is None:
+        return
+    path, line = where
+    try:
+        with open(path, encoding="utf-8") as fh:
+            tree = ast.parse(fh.read())
+    except (OSError, SyntaxError, ValueError):
+        return
+    for node in tree.body:
+        if isinstance(node, ast.If) and _is_main_test(node.test) and node.lineno <= line <= node.end_lineno:
+            return
+    raise ParameterError(
+        f"sweep(executor='dask') is called from the top level of the script '{path}' (line {line}), outside an "
+        f"'if __name__ == \"__main__\":' block. Dask starts its worker processes by running the script again, "
+        f"which would start the sweep again in each of them. Put the call under 'if __name__ == \"__main__\":', or "
+        f"use executor='process' (the default), which needs no guard")

@@ -26,7 +26,8 @@ class SweepTable(list):
         return [r.get(name) for r in self]
 
     def to_csv(self, path) -> None:
-        with open(path, "w", newline="") as fh:
+        from ..io import writing
+        with writing(path, "sweep table to_csv"), open(path, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=self.columns)
             w.writeheader()
             for r in self:
