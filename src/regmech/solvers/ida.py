@@ -487,6 +487,7 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
     reuse = {}        # the last segment's solver while it may start the next one (see _solve_segment)
     while t < t_end:
         if deadline is not None:
+            deadline.note(stats.steps, len(events))
             deadline.check(t)
         c._t_right = t_stop
         if t_stop - t <= 1e-13 * max(1.0, abs(t)):
