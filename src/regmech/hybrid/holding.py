@@ -185,7 +185,8 @@ class Holding:
         them needed (a chain of stuck clutches and a brake behind a lossy gear rolling at rest), the
         function is that of the holder whose share is the smallest: at rest the holders of a chain
         carry one load (up to the loads applied between them), and the first share to reach zero
-        ends the sharing. Without a function the device's own slip, zero to round-off, crossed at
+        ends the sharing; only for a lossy gear (a friction device held by several keeps sliding until
+        its own slip leaves zero). Without a function the device's own slip, zero to round-off, crossed at
         every restart (MSL Rotational.Examples.HeatLosses with a node inertia after its lossy gear:
         201 silent crossings within 1.4 us, ChatteringError). ``view``: the restart's relative speeds
         and accelerations (``ModeLogic._restart_view``).
@@ -213,6 +214,10 @@ class Holding:
             if not spans(stuck, G[j]):
                 continue                 # its motion is free: it is really sliding
             holders = [h for h in stuck if not spans([k for k in stuck if k != h], G[j])]
+            if len(holders) > 1 and not self.devices[j].coupled:
+                # a friction device held by several: it stays sliding until its own speed leaves zero (the paths
+                # of the rule of holding in turn, fuzz seed 102, rest on that)
+                continue
             best = None
             for h in holders:
                 others = [k for k in stuck if k != h]

@@ -559,9 +559,9 @@ class Deadline:
     """The active limit as one solver run sees it; ``check(t)`` raises ``SimulationTimeout`` past its end and moves
     the active progress bar (``progress``) to ``t``; ``note(steps, events)`` gives the bar the run's counts."""
 
-    __slots__ = ("at", "limit", "solver", "model_name", "t_end", "progress")
+    __slots__ = ("at", "limit", "solver", "model_name", "t_end", "progress", "calls")
 
-    def __init__(self, limit, solver: str, model_name: str, t_end: float, progress=None):
+    def __init__(self, limit, solver: str, model_name: str, t_end: float, progress=None, calls=None):
         # without a limit (a progress bar alone) the end lies 1e9 s ahead: finite, for the compiled kernels' ns clock
         self.at = limit.at if limit is not None else time.monotonic() + NO_LIMIT_S
         self.limit = limit
@@ -569,10 +569,16 @@ class Deadline:
         self.model_name = model_name
         self.t_end = float(t_end)
         self.progress = progress
+        self.calls = calls          # [checks left] of the active ``call_budget``, shared by the runs under it
 
     def check(self, t) -> None:
         if self.progress is not None:
             self.progress.update(t, self.solver)
+        if self.calls is not None:
+            self.calls[0] -= 1
+            if self.calls[0] < 0:
+                raise CallBudgetExceeded(f"solver '{self.solver}' on model '{self.model_name}' used up its budget of "
+                                         f"evaluations at t={float(t):.6g} s")
         if time.monotonic() > self.at:
             raise self.error(t)
 
@@ -648,14 +654,32 @@ def progress_bar(progress, model_name, t_start, t_end):
         bar.close()
 
 
+class CallBudgetExceeded(SimulationTimeout):
+    """A run under ``call_budget`` evaluated its equations more often than the budget allows."""
+
+
+@contextlib.contextmanager
+def call_budget(calls: int):
+    """Run the body with at most ``calls`` checks of the deadline (one per residual evaluation on IDA's Python
+    path, one per step of the ODE-form driver): ``CallBudgetExceeded`` beyond (a cost bound counted in work, not
+    in wall time)."""
+    outer = getattr(_ACTIVE, "calls", None)
+    _ACTIVE.calls = [int(calls)]
+    try:
+        yield
+    finally:
+        _ACTIVE.calls = outer
+
+
 def run_deadline(solver: str, model, t_end) -> Deadline | None:
-    """The limit of the run about to start, with the active progress bar (None when neither is active in this
-    thread)."""
+    """The limit of the run about to start, with the active progress bar and call budget (None when none is active
+    in this thread)."""
     limit = getattr(_ACTIVE, "limit", None)
     progress = getattr(_ACTIVE, "progress", None)
-    if limit is None and progress is None:
+    calls = getattr(_ACTIVE, "calls", None)
+    if limit is None and progress is None and calls is None:
         return None
-    return Deadline(limit, solver, getattr(model, "name", "?"), t_end, progress)
+    return Deadline(limit, solver, getattr(model, "name", "?"), t_end, progress, calls)
 
 
 def refuse_impacts(model, solver: str) -> None:
