@@ -407,7 +407,7 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
             f"the first one's evaluations, so it was stopped and the first run is returned: its error on the small "
             f"motion may exceed rtol's promise. "
             f"Pass atol (a scalar or an array) to choose, or atol_rescale=False to silence this.",
-            RuntimeWarning, stacklevel=3)
+            RuntimeWarning, stacklevel=_user_level())
         return first_res
     except SimulationError as exc:
         single = 0.5 * RERUN_FACTOR * min(factors.values()) * atol0    # small enough not to be repeated
@@ -426,8 +426,18 @@ def simulate_ida(model, t_start=0.0, t_end=1.0, dt_out=None, rtol=1e-6, atol=Non
     warnings.warn(
         f"ida on model '{model.name}': the motion is small for atol={atol0:.3g}, so the run was made again with the "
         f"absolute tolerances scaled to it (atol times {scaled}; res.stats.extra['atol_rescaled'] counts both runs). "
-        f"Pass atol to choose, or atol_rescale=False for one run as given.", RuntimeWarning, stacklevel=3)
+        f"Pass atol to choose, or atol_rescale=False for one run as given.", RuntimeWarning, stacklevel=_user_level())
     return again
+
+
+def _user_level() -> int:
+    """The ``stacklevel`` of a warning issued by the caller that points at the first frame outside regmech (the
+    user's ``simulate`` call)."""
+    import sys
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_globals.get("__name__", "").startswith("regmech"):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 class _FirstRun:
