@@ -5,7 +5,7 @@
 """
 
 from .chains import chain_drive, train
-from .msl import coupled_clutches, first, one_way_clutch
+from .msl import coupled_clutches, first, friction, one_way_clutch
 from .vehicle import vehicle_launch
 from .excavator import excavator_swing
 from .gearshift import gear_shift
@@ -30,6 +30,6 @@ SCENES["six_speed_car"] = six_speed_car
 SCENES["dct_car"] = dct_car
 SCENES["slip_control"] = slip_control
 
-__all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch", "vehicle_launch",
+__all__ = ["SCENES", "train", "chain_drive", "first", "coupled_clutches", "one_way_clutch", "friction", "vehicle_launch",
            "excavator_swing", "gear_shift", "electric_car", "driver_cycle", "six_speed_car", "dct_car",
            "slip_control"]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import regmech as rm
-from regmech.components import Clutch, Damper, Fixed, IdealGear, Inertia, OneWayClutch, Spring, Torque
+from regmech.components import Brake, Clutch, Damper, Fixed, IdealGear, Inertia, OneWayClutch, Spring, SpringDamper, Torque
 from regmech.signals import Constant, Pulse, Sine, Step
 
 
@@ -124,4 +124,38 @@ def lossy_gear_demo(number: int = 1) -> rm.Model:
     m.connect(j1.flange_b, gear.flange_a)
     m.connect(gear.flange_b, j2.flange_a)
     m.connect(j2.flange_b, t2.flange)
+    return m
+
+
+def friction(start_time: float = 0.5) -> rm.Model:
+    """MSL ``Rotational.Examples.Friction``: a drive train with a clutch and a brake (simulate 3 s).
+
+    torque ``200 sin(100 t)`` [N m] until ``start_time``, 0 after (MSL's sine times a step down; here a second
+    source ``-200 sin(100 t)`` from ``start_time`` on) -> inertia3 (J 1, w 100 rad/s) -> clutch (fn_max 160 N,
+    f_normalized 1, mu 0.5, peak 1) -> inertia2 (J 0.05, w 90) -> SpringDamper (c 160 N m/rad, d 1 N m s/rad)
+    -> inertia1 (J 1, w 90), braked to the ground by a brake (fn_max 1600 N) engaged by a unit step at
+    ``start_time``. All angles start at 0.
+    """
+    import math
+    w = 100.0                                  # 2 pi f with f = 50/pi Hz
+    m = rm.Model("Friction")
+    fixed = m.add(Fixed("fixed"))
+    torque = m.add(Torque("torque", tau=Sine(amplitude=200.0, freq_hz=w / (2 * math.pi))))
+    stop = m.add(Torque("torque_stop", tau=Sine(amplitude=-200.0, freq_hz=w / (2 * math.pi), phase=w * start_time,
+                                                  start_time=start_time)))
+    inertia3 = m.add(Inertia("inertia3", J=1.0, phi0=0.0, w0=100.0))
+    clutch = m.add(Clutch("clutch", fn_max=160.0, f_normalized=1.0))
+    inertia2 = m.add(Inertia("inertia2", J=0.05, phi0=0.0, w0=90.0))
+    spring = m.add(SpringDamper("spring", c=160.0, d=1.0))
+    brake = m.add(Brake("brake", fn_max=1600.0, f_normalized=Step(start_time=start_time)))
+    inertia1 = m.add(Inertia("inertia1", J=1.0, phi0=0.0, w0=90.0))
+    for src in (torque, stop):
+        m.connect(src.support, fixed.flange)
+        m.connect(src.flange, inertia3.flange_a)
+    m.connect(inertia3.flange_b, clutch.flange_a)
+    m.connect(clutch.flange_b, inertia2.flange_a)
+    m.connect(inertia2.flange_b, spring.flange_a)
+    m.connect(spring.flange_b, brake.flange)
+    m.connect(brake.flange, inertia1.flange_a)
+    m.connect(brake.support, fixed.flange)
     return m

@@ -243,7 +243,10 @@ class Model:
         options (``rtol``, ``atol``, ``h``, ...), under the same contract when
         ``accuracy`` is given (see ``regmech.solvers.accuracy``); ``timeout_s`` [s] bounds
         a run's wall time (``SimulationTimeout`` beyond it); ``max_points``
-        (default 1,000,000) caps the number of output points.
+        (default 1,000,000) caps the number of output points; ``progress``:
+        True shows a progress bar (simulated time, solver, step attempts,
+        events) on stderr, False none, None (default) one after 3 s when
+        stderr is a terminal (an interactive session; never under pytest).
         """
         from .solvers import simulate
         return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, accuracy=accuracy, t_start=t_start,

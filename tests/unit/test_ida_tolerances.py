@@ -231,3 +231,26 @@ def test_an_ida_failure_after_an_event_names_the_devices_that_changed_there():
                           Event(0.100285582, "hstop1", 0, 1, "contact")], 0.100285582)
     assert "t=0.100285582" in note and "lbrake1 Backward -> Forward" in note and "hstop1" in note
     assert "solver='dop853'" in note and "brake2" not in note
+
+
+def test_an_explicit_run_announces_its_repeat():
+    """A repeat with rescaled tolerances is said (a RuntimeWarning naming atol) and counted in the stats."""
+    m = chain(0.3, friction=False)
+    with pytest.warns(RuntimeWarning, match="made again"):
+        res = m.simulate(t_end=0.2, solver="ida")
+    assert res.stats.extra["atol_rescaled"]["first_run_rhs_calls"] > 0
+
+
+def test_a_repeat_beyond_its_budget_returns_the_first_run(monkeypatch):
+    """The repeat may cost what the first run cost: beyond that it is stopped, the first run is returned as it
+    was (its step attempts and residual calls, nothing of the repeat), the stats say so and a warning too."""
+    from regmech.solvers import ida
+    m = chain(0.3, friction=False)
+    plain = m.simulate(t_end=0.2, solver="ida", atol_rescale=False, native=False)
+    monkeypatch.setattr(ida, "REPEAT_BUDGET", 0.5)
+    with pytest.warns(RuntimeWarning, match="was stopped"):
+        res = m.simulate(t_end=0.2, solver="ida", native=False)
+    info = res.stats.extra["atol_rescaled"]
+    assert info["stopped"] is True and info["repeat_budget_calls"] == int(0.5 * plain.stats.rhs_calls)
+    assert res.stats.steps == plain.stats.steps and res.stats.rhs_calls == plain.stats.rhs_calls
+    assert np.array_equal(res["M0.v"], plain["M0.v"])

@@ -193,6 +193,10 @@ class ModeLogic:
         #    beyond its tau0_max breaks away at once (as in one Modelica event iteration), then repeat
         known = None
         probed = False
+        # devices that left rest at this event (``_tie_break_holds``): a break-away at a tie is judged by the motion
+        # a moment later, once; ``tie_held`` are those that judgement kept stuck (no lenient break-away again)
+        broke = {j for j in range(self.mf) if old[j] in (STUCK, HELD) and new[j] in (FORWARD, BACKWARD)}
+        tie_held = set()
         passes = 4 * self.mf + 4
         changed_in = np.zeros(self.mf, int)     # passes in the second half in which each device changed
         for k in range(passes):
@@ -216,6 +220,7 @@ class ModeLogic:
                 continue
             lam_f = lam[self.offset:]
             q = self.q_from(t, x, v, z)          # a command may read the speeds just locked
+            noise = self._load_noise(x, lam)
             changed = False
             for j, dev in enumerate(self.devices):
                 if dev.coupled:
@@ -245,6 +250,8 @@ class ModeLogic:
                         new[j] = FREE
                         changed = True
                     continue
+                if abs(lam_f[j]) <= noise:
+                    continue        # a load within the round-off of the forces is no load (``_load_noise``)
                 qj = None if q is None else q[j]
                 tau0, tau0_max = self._law("capacities", j, q, t, left)
                 # a load within round-off of the capacity and still rising breaks away with the others
@@ -256,13 +263,17 @@ class ModeLogic:
                 # load's rate alone, and held 28.9 N m with a capacity falling to 8.5 N m: a silently wrong run)
                 at_tie = abs(abs(lam_f[j]) - tau0_max) <= tie
                 cap_rate = self._capacity_rate(dev, qj, t, left, tau0_max) if at_tie else 0.0
-                if lam_f[j] > tau0_max * (1 + 1e-12) or (lam_f[j] > tau0_max - tie and lam_rate[j] > cap_rate):
+                lenient = j not in tie_held
+                if lam_f[j] > tau0_max * (1 + 1e-12) or \
+                        (lenient and lam_f[j] > tau0_max - tie and lam_rate[j] > cap_rate):
                     new[j] = self._slide_direction(dev, qj, t, left, 1)
                     changed = True
-                elif (lam_f[j] < -tau0_max * (1 + 1e-12) or (lam_f[j] < -tau0_max + tie and lam_rate[j] < -cap_rate)) \
-                        and not dev.one_way:
+                elif (lam_f[j] < -tau0_max * (1 + 1e-12) or
+                      (lenient and lam_f[j] < -tau0_max + tie and lam_rate[j] < -cap_rate)) and not dev.one_way:
                     new[j] = BACKWARD
                     changed = True
+                if new[j] in (FORWARD, BACKWARD):
+                    broke.add(j)
             # a device sliding (or a lossy gear rolling, fuzz seed 454) at zero slip must leave zero in its
             # own direction under the modes now chosen. Several break-aways in one pass change each other's loads: on fuzz seed 37 a
             # limited-slip lock broke away backward while a clutch and a bearing on its load path broke
@@ -276,6 +287,10 @@ class ModeLogic:
                 for j, dev in enumerate(self.devices):
                     if (new[j] in (FORWARD, BACKWARD) and abs(w_now[j]) <= scale
                             and new[j] * a_now[j] < -a_tol):
+                        if j in broke and j not in tie_held:
+                            if self._tie_break_holds(j, new, t, x, v, z, a, known[2]):
+                                continue
+                            tie_held.add(j)
                         new[j] = STUCK
                         changed = True
                     elif (not dev.coupled and new[j] in (FORWARD, BACKWARD) and old[j] in (STUCK, HELD)
@@ -417,11 +432,54 @@ class ModeLogic:
             else:
                 qj = None if q2 is None else q2[j]
                 tau0_max = self._call(dev, "capacities", qj, t2, left)[1]
-                beyond = abs(lam2_f[j]) > tau0_max * (1 + 1e-12)
+                beyond = abs(lam2_f[j]) > max(tau0_max * (1 + 1e-12), self._load_noise(x2, lam2))
                 d = self._slide_direction(dev, qj, t2, left, np.sign(lam2_f[j])) if beyond else 0
             if d:
                 out.append((j, d))
         return out
+
+    def _load_noise(self, x, lam):
+        """Round-off of the loads of stuck devices at positions ``x`` [m or rad] with constraint forces ``lam``:
+        ``8 eps max(max_r k_r (|S_r| |x|), |lam|)`` [N or N m], ``k_r`` the start stiffness of compliant row ``r``
+        and ``S_r`` its row of the relative coordinates.
+
+        Why: a spring's force ``k (x_b - x_a - l0)`` carries the round-off of the positions it subtracts. Two masses
+        at 0.7 and 0.8 m on a 100 N/m spring of length 0.1 m start with 7e-15 N of it; a brake engaging there under
+        a Sine normal force (its capacity 1e-17 N at t = 2e-20 s) broke away on it, slid on a slip IDA cannot
+        resolve at that scale (its speeds' noise reversed the slip at once) and stuck again, until the run was
+        refused as chattering. A load that is round-off does not move a device; a real load soon exceeds it."""
+        k = self.__dict__.get("_noise_rows")
+        if k is None:
+            from ..errors import RegmechError
+            c = self.c
+            try:
+                stiff = np.abs(c.stiffness_estimate()) if c.Sc.shape[0] else np.zeros(0)
+            except RegmechError:
+                stiff = np.zeros(c.Sc.shape[0])
+            k = self._noise_rows = (stiff, abs(c.Sc).tocsr())
+        stiff, S = k
+        pos = float((stiff * (S @ np.abs(x))).max(initial=0.0)) if stiff.size else 0.0
+        return 8.0 * np.finfo(float).eps * max(pos, abs_max(lam))
+
+    def _tie_break_holds(self, j, modes, t, x, v, z, a, dz):
+        """Whether device ``j``, which broke away from rest at this event and starts sliding in ``modes`` with its
+        relative acceleration against its direction, slides in its direction a moment later (``PROBE_DT``, on the
+        state advanced by its rates): a break-away at a tie, kept.
+
+        Why: a break-away is taken with the load within ``1e-9`` of the capacity when it is rising past it
+        (``lam_rate``), as the root finder locates the crossing only to that. With a static capacity equal to the
+        kinetic one (``peak = 1``, MSL's default) the sliding relative acceleration is then ``(load - tau0) / J_eff``:
+        a load 6e-8 N m short of 80 N m on J_eff = 0.048 kg m^2 gave a_rel = +1.2e-6 rad/s^2 against a Backward
+        break-away, beyond the accelerations' round-off, so the device stuck again, broke away again, and the
+        logic refused the run (MSL Rotational.Examples.Friction at rtol 1e-8, t = 0.0593 s). A moment later the
+        load is past the capacity and the slip leaves zero in the break-away's direction: the crossing lies within
+        the probe's step. When it does not, the device stays stuck and only a load beyond the capacity moves it."""
+        dt = PROBE_DT * max(1.0, abs(t))
+        try:
+            a2, _, _ = self.c.accelerations(t + dt, x + v * dt, v + a * dt, z + dz * dt, modes)
+        except StructureError:
+            return False
+        return modes[j] * self.w_rel(a2)[j] > 0
 
     @staticmethod
     def _gear_at_tie(dev, d, sa, lam_g):

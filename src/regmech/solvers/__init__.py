@@ -26,7 +26,7 @@ import time
 
 from .._numbers import describe
 from ..errors import ParameterError
-from .common import MAX_TIME_EVENTS, check_max_time_events, check_signals, check_timeout, time_limit
+from .common import MAX_TIME_EVENTS, check_max_time_events, check_signals, check_timeout, progress_bar, time_limit
 from .options import MAX_POINTS, TIME_ARGUMENTS, OptionSet, check_motion, check_times
 
 SOLVERS: dict = {}
@@ -92,7 +92,9 @@ def simulate(model, t_end, dt_out=None, solver="auto", *, accuracy=None, t_start
         from .ida_native import libraries
         libraries()         # numba's IDA kernels, loaded before any run's clock starts (reported below)
     # one wall-clock limit over everything the call runs (auto's choice, the contract's companion runs)
-    with time_limit(options.pop("timeout_s", None)):
+    progress = options.pop("progress", None)
+    with time_limit(options.pop("timeout_s", None)), \
+            progress_bar(progress, getattr(model, "name", "model"), t_start, t_end):
         res = _simulate(model, t_end, dt_out, solver, accuracy, t_start, options)
     from .ida_native import load_time
     loaded = load_time()
@@ -159,6 +161,8 @@ def check_options(t_end, dt_out=None, solver="auto", t_start=0.0, max_points=MAX
     options.pop("accuracy", None)
     if "max_time_events" in options:
         out["max_time_events"] = check_max_time_events(options.pop("max_time_events"))
+    if "progress" in options:
+        out["progress"] = options.pop("progress")
     if "timeout_s" in options:
         out["timeout_s"] = check_timeout(options.pop("timeout_s"), "simulate(timeout_s=...)")
     if solver == "auto":

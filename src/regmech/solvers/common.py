@@ -556,20 +556,35 @@ def time_limit(seconds, origin: str = "simulate(timeout_s=...)"):
 
 
 class Deadline:
-    """The active limit as one solver run sees it; ``check(t)`` raises ``SimulationTimeout`` past its end."""
+    """The active limit as one solver run sees it; ``check(t)`` raises ``SimulationTimeout`` past its end and moves
+    the active progress bar (``progress``) to ``t``; ``note(steps, events)`` gives the bar the run's counts."""
 
-    __slots__ = ("at", "limit", "solver", "model_name", "t_end")
+    __slots__ = ("at", "limit", "solver", "model_name", "t_end", "progress", "calls")
 
-    def __init__(self, limit: _Limit, solver: str, model_name: str, t_end: float):
-        self.at = limit.at
+    def __init__(self, limit, solver: str, model_name: str, t_end: float, progress=None, calls=None):
+        # without a limit (a progress bar alone) the end lies 1e9 s ahead: finite, for the compiled kernels' ns clock
+        self.at = limit.at if limit is not None else time.monotonic() + NO_LIMIT_S
         self.limit = limit
         self.solver = solver
         self.model_name = model_name
         self.t_end = float(t_end)
+        self.progress = progress
+        self.calls = calls          # [checks left] of the active ``call_budget``, shared by the runs under it
 
     def check(self, t) -> None:
+        if self.progress is not None:
+            self.progress.update(t, self.solver)
+        if self.calls is not None:
+            self.calls[0] -= 1
+            if self.calls[0] < 0:
+                raise CallBudgetExceeded(f"solver '{self.solver}' on model '{self.model_name}' used up its budget of "
+                                         f"evaluations at t={float(t):.6g} s")
         if time.monotonic() > self.at:
             raise self.error(t)
+
+    def note(self, steps, events) -> None:
+        if self.progress is not None:
+            self.progress.steps, self.progress.events = int(steps), int(events)
 
     def error(self, t) -> SimulationTimeout:
         lim = self.limit
@@ -580,12 +595,91 @@ class Deadline:
             f"rm.Scene(band_hz=...))")
 
 
+#: a Deadline without a limit ends this far ahead [s]
+NO_LIMIT_S = 1e9
+#: the progress bar is redrawn at most this often [s]
+PROGRESS_EVERY_S = 0.2
+#: with ``progress=None`` (an interactive session), the bar appears once a run has taken this long [s]
+PROGRESS_DELAY_S = 3.0
+
+
+class _Progress:
+    """A tqdm bar over the simulated time ``[t_start, t_end]`` with the current run's solver, step attempts and
+    events, redrawn at most every ``PROGRESS_EVERY_S`` from the solvers' checks (``Deadline.check``)."""
+
+    def __init__(self, model_name, t_start, t_end, delay):
+        import sys
+        from tqdm import tqdm
+        self.t_start, self.steps, self.events, self.last = float(t_start), 0, 0, 0.0
+        self.bar = tqdm(total=float(t_end) - float(t_start), desc=str(model_name), unit="s", delay=delay,
+                        leave=False, file=sys.stderr, dynamic_ncols=True,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.4g}/{total:.4g} s [{elapsed}{postfix}]")
+
+    def update(self, t, solver):
+        now = time.monotonic()
+        if now - self.last < PROGRESS_EVERY_S:
+            return
+        self.last = now
+        self.bar.n = min(max(float(t) - self.t_start, 0.0), self.bar.total)
+        self.bar.set_postfix_str(f"{solver}, {self.steps} steps, {self.events} events", refresh=False)
+        self.bar.refresh()
+
+    def close(self):
+        self.bar.close()
+
+
+@contextlib.contextmanager
+def progress_bar(progress, model_name, t_start, t_end):
+    """A progress bar over the body's runs: ``progress`` True (shown at once), False (none) or None (shown after
+    ``PROGRESS_DELAY_S`` when stderr is a terminal and no test runs: an interactive session's long run)."""
+    import os
+    import sys
+    if progress is None:
+        interactive = getattr(sys.stderr, "isatty", lambda: False)() and "PYTEST_CURRENT_TEST" not in os.environ
+        progress, delay = interactive, PROGRESS_DELAY_S
+    elif isinstance(progress, bool):
+        delay = 0.0
+    else:
+        raise ParameterError(f"simulate(progress=...) must be True, False or None, got {progress!r}")
+    outer = getattr(_ACTIVE, "progress", None)
+    if not progress or outer is not None:
+        yield
+        return
+    bar = _Progress(model_name, t_start, t_end, delay)
+    _ACTIVE.progress = bar
+    try:
+        yield
+    finally:
+        _ACTIVE.progress = None
+        bar.close()
+
+
+class CallBudgetExceeded(SimulationTimeout):
+    """A run under ``call_budget`` evaluated its equations more often than the budget allows."""
+
+
+@contextlib.contextmanager
+def call_budget(calls: int):
+    """Run the body with at most ``calls`` checks of the deadline (one per residual evaluation on IDA's Python
+    path, one per step of the ODE-form driver): ``CallBudgetExceeded`` beyond (a cost bound counted in work, not
+    in wall time)."""
+    outer = getattr(_ACTIVE, "calls", None)
+    _ACTIVE.calls = [int(calls)]
+    try:
+        yield
+    finally:
+        _ACTIVE.calls = outer
+
+
 def run_deadline(solver: str, model, t_end) -> Deadline | None:
-    """The limit of the run about to start (None when no ``time_limit`` is active in this thread)."""
+    """The limit of the run about to start, with the active progress bar and call budget (None when none is active
+    in this thread)."""
     limit = getattr(_ACTIVE, "limit", None)
-    if limit is None:
+    progress = getattr(_ACTIVE, "progress", None)
+    calls = getattr(_ACTIVE, "calls", None)
+    if limit is None and progress is None and calls is None:
         return None
-    return Deadline(limit, solver, getattr(model, "name", "?"), t_end)
+    return Deadline(limit, solver, getattr(model, "name", "?"), t_end, progress, calls)
 
 
 def refuse_impacts(model, solver: str) -> None:

@@ -1587,6 +1587,7 @@ def _simulate_ode(model, name, make_stepper, t_start, t_end, dt_out, *, max_even
     t = t_start
     while True:
         if deadline is not None:
+            deadline.note(stats.steps, len(events))
             deadline.check(t)
         c._t_right = t_stop
         problem.modes = modes

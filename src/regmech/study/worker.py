@@ -73,7 +73,8 @@ def run_one(spec: StudySpec, run_id: int, params: dict, timeout_s: float | None 
     try:
         with time_limit(timeout_s, TIMEOUT_ORIGIN):
             model = spec.build(**params)
-            res = model.simulate(**spec.simulate_options)
+            # the study's own bar tells the progress; a bar per run would scroll over it
+            res = model.simulate(**{"progress": False, **spec.simulate_options})
             values = spec.outputs(res)
         elapsed = time.perf_counter() - t0
         if timeout_s is not None and elapsed > timeout_s:
