@@ -183,6 +183,7 @@ class Trajectory:
         rows = [("c", int(g.row_index[i, r])) for r in range(tpl.k)]
         args = [col(self._row_e(w, 0)) for w in rows] + [col(self._row_e(w, 1)) for w in rows] + \
                [col(self.Y[:, c.iz[int(g.state_index[i, s])]]) for s in range(len(tpl.states))] + \
+               [col(self.Y[:, c.iz[int(g.read_index[i, j])]]) for j in range(len(tpl.reads))] + \
                [p[None, i:i + 1] for p in g.param_values] + \
                [np.array([sigs[i].value(t, lf) for t, lf in zip(self.t, self.left)], float).reshape(n_t, 1)
                 for sigs in g.signals] + [self.t[:, None]]
