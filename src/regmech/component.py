@@ -137,6 +137,12 @@ class Param:
         where = f"{type(comp).__name__} '{comp.name}'"
         if self.check == "signal":
             if isinstance(value, StateRead):
+                want = self.unit_in(getattr(comp, "domain", ROTATIONAL))
+                if want and value.unit and want != value.unit:
+                    raise ParameterError(
+                        f"{where}: parameter '{self.name}' is in [{want}] but {value!r} is in [{value.unit}]; "
+                        f"convert it with a block in between (e.g. blocks.Gain(u={value!r}, k=...) or a "
+                        f"controller whose output is in [{want}])")
                 return value
             if isinstance(value, Command):
                 if not self.command:
@@ -527,6 +533,10 @@ class Device(Component):
     #: states held between sample instants: name -> (input parameter, period parameter, offset parameter); the
     #: state's rate is 0 and at every instant ``offset + k * period`` it takes the input's value
     sampled_states: ClassVar[dict[str, tuple[str, str, str]]] = {}
+    #: states that say which side of one of the device's switching surfaces the run is on: name -> the surface's
+    #: position in ``switching_surfaces()``; the state's rate is 0 and it is 1 on the positive side, 0 on the
+    #: negative one, set at every restart (a law that jumps at the surface reads it, so no step meets the jump)
+    branch_states: ClassVar[dict[str, int]] = {}
     #: True for devices that feed energy in (sources): the energy audit counts
     #: their absorbed power with the opposite sign, as work of the sources
     is_source: ClassVar[bool] = False

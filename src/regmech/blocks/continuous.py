@@ -4,16 +4,16 @@ Their states are differential unknowns of the DAE (``blocks.base``)::
 
     Lag          T dy/dt = k u - y                              y(0) = y0        (no feedthrough)
     Integrator   dy/dt = k u, held in [y_min, y_max]:           y(0) = y0        (no feedthrough)
-                 dy/dt = 0 while y >= y_max and k u > 0 (or y <= y_min and k u < 0); reaching a limit is an
-                 event
+                 at the upper limit dy/dt = min(k u, 0), at the lower one max(k u, 0); reaching or leaving a
+                 limit is an event, and which limit holds is a branch state (``q_hi``, ``q_lo``) set there
     PI           e = ref - u                                    control error
                  v = k e + x                                    unlimited output
                  y = min(max(v, y_min), y_max)                  output (reaching a limit is an event)
                  dx/dt = (k / T_i) e + (y - v) / T_t            integral part, back-calculation anti-windup:
                                                                 while limited, x is pulled back so that v
                                                                 tracks y with time constant T_t (default T_i)
-    PID          as PI, with v = k e + x + k T_d dd,  dd = (e - d) / T_f,  dd/dt... d the filter state:
-                 dd/dt = (e - d) / T_f,  T_f = T_d / N          (the derivative e' filtered with T_f)
+    PID          as PI, with v = k e + x + k T_d (e - d) / T_f  (the derivative of e filtered with T_f)
+                 dd/dt = (e - d) / T_f,  T_f = T_d / N          d the filter's state
 
 Units: ``y`` has the unit of what the controller drives (V for a motor's voltage, 1 for a clutch's
 normalised force), ``k`` [unit of y per unit of e], ``T_i``, ``T_t``, ``T_d``, ``T`` [s].
@@ -48,6 +48,8 @@ class Integrator(Block):
     drives beyond it; each stop is an event); ``y0`` the start value (inside the limits)."""
 
     dynamic_outputs = {"y": "y0"}
+    internal = {"q_hi": None, "q_lo": None}
+    branch_states = {"q_hi": 0, "q_lo": 1}
     u = Input(doc="input")
     k = Param(1.0, check="real", doc="gain")
     y0 = Param(0.0, check="real", doc="start value of y")
@@ -65,8 +67,9 @@ class Integrator(Block):
 
     def rates(self, e, de):
         r = self.k * self.u
-        held = sympy.Or(sympy.And(self.y >= self.y_max, r > 0), sympy.And(self.y <= self.y_min, r < 0))
-        return {"y": sympy.Piecewise((0.0, held), (r, True))}
+        free = 1 - self.q_hi - self.q_lo
+        return {"y": free * r + self.q_hi * sympy.Piecewise((r, r < 0), (0.0, True))
+                + self.q_lo * sympy.Piecewise((r, r > 0), (0.0, True)), "q_hi": 0, "q_lo": 0}
 
     def switching_surfaces(self, e, de):
         return [(self.y - self.y_max, 1), (self.y_min - self.y, -1)]
@@ -141,7 +144,7 @@ class PID(PI):
         return err, self.k * err + self.x + self.k * self.T_d * (err - self.d) / t_f
 
     def rates(self, e, de):
-        out = super().rates(e, de)
+        out = PI.rates(self, e, de)          # (no super(): self is the compiler's stand-in here)
         out["d"] = (self.ref - self.u - self.d) * self.N / self.T_d
         return out
 

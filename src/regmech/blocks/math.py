@@ -9,8 +9,9 @@ Each output is an algebraic unknown of the DAE (``blocks.base``)::
     Product     y = u1 u2
     Min / Max   y = min(u1, u2) / max(u1, u2)      kink at u1 = u2: a switching surface (event)
     Saturation  y = min(max(u, y_min), y_max)      kinks at the limits: switching surfaces (events)
-    Switch      y = u1 if u2 > threshold else u3   jump at u2 = threshold: a switching surface (event)
-    Compare     y = 1 if u > ref else 0            jump at u = ref: a switching surface (event)
+    Switch      y = u1 if u2 > threshold else u3   jump at u2 = threshold: a switching surface (event); the
+                                                   branch is a state set at restarts (``branch_states``)
+    Compare     y = 1 if u > ref else 0            jump at u = ref: as Switch
     Table1D     y = table(u)                       linear between breakpoints, held beyond the ends; its
                                                    slope's kinks are left to the step-size control
 
@@ -137,30 +138,44 @@ class Saturation(Block):
 
 
 class Switch(Block):
-    """``y = u1 if u2 > threshold else u3`` (MSL ``Switch`` with a threshold); the switch is an event."""
+    """``y = u1 if u2 > threshold else u3`` (MSL ``Switch`` with a threshold). The branch is the state ``q``
+    (1 above the threshold, 0 below), set at every restart from the side of the surface ``u2 - threshold``
+    (``Device.branch_states``): the crossing is an event, and no step meets the jump of ``y``."""
 
     outputs = {"y": ""}
+    internal = {"q": None}
+    branch_states = {"q": 0}
+    switching_kind = "switch"
     u1 = Input(doc="value while u2 > threshold")
     u2 = Input(doc="control input")
     u3 = Input(doc="value while u2 <= threshold")
     threshold = Param(0.0, check="real", doc="switching level of u2")
 
     def output_laws(self, e, de):
-        return {"y": sympy.Piecewise((self.u1, self.u2 > self.threshold), (self.u3, True))}
+        return {"y": self.q * self.u1 + (1 - self.q) * self.u3}
+
+    def rates(self, e, de):
+        return {"q": 0}
 
     def switching_surfaces(self, e, de):
         return [(self.u2 - self.threshold, 1)]
 
 
 class Compare(Block):
-    """``y = 1 if u > ref else 0``; the change is an event."""
+    """``y = 1 if u > ref else 0``: the branch state ``q`` itself (as ``Switch``); the crossing is an event."""
 
     outputs = {"y": "1"}
+    internal = {"q": None}
+    branch_states = {"q": 0}
+    switching_kind = "switch"
     u = Input(doc="input")
     ref = Input(doc="level", default=0.0)
 
     def output_laws(self, e, de):
-        return {"y": sympy.Piecewise((1.0, self.u > self.ref), (0.0, True))}
+        return {"y": self.q}
+
+    def rates(self, e, de):
+        return {"q": 0}
 
     def switching_surfaces(self, e, de):
         return [(self.u - self.ref, 1)]
@@ -216,7 +231,7 @@ class Table1D(Block):
         self._values["table"] = _table_points(self.name, self.table)
 
     def output_laws(self, e, de):
-        pts = type(self)._points
+        pts = self._points          # (a class attribute: read through the compiler's stand-in too)
         u = self.u
         pieces = [(float(pts[0, 1]), u < float(pts[0, 0]))]
         for (x0, y0), (x1, y1) in zip(pts[:-1], pts[1:]):

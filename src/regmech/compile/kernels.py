@@ -219,6 +219,10 @@ def template_for(dev: Device) -> Template:
     # affine: the Jacobian is a function of the parameters alone (no e, de, z, t or inputs)
     variable = set(e) | set(de) | set(z) | set(r) | {t} | set(input_syms)
     affine = not any(x.free_symbols & variable for x in jac_exprs)
+    if affine:
+        # a law that jumps (a Piecewise of the variables with constant pieces: a comparator) has a zero Jacobian
+        # almost everywhere, yet is no affine function
+        affine = not any(pw.free_symbols & variable for x in taus + dz for pw in x.atoms(sympy.Piecewise))
     offset_fn, offset_varies, offset_uses_time, offset_coef_fn = None, False, False, None
     if affine:
         zero = {s: 0 for s in list(e) + list(de) + z + r}

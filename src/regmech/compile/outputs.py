@@ -289,6 +289,7 @@ class Trajectory:
         first request, from the rows, forces and states of this one instance (``taus``, ``dess``: the recipes of
         its rows' forces and relative speeds, with what a friction row's mode pins at zero)."""
         from ..errors import ModelError, RegmechError
+        from .reads import recorded_reads
         cache: dict = {}
 
         def compute():
@@ -300,7 +301,8 @@ class Trajectory:
                      for name, j in maps["states"].get(dev.name, ())}
                 who = f"{type(dev).__name__} '{dev.name}'"
                 try:
-                    out = dev.derived(self.t, self.left, e, de, tau, z)
+                    with recorded_reads(self.c, dev, self.t, self.left, self.Y):
+                        out = dev.derived(self.t, self.left, e, de, tau, z)
                 except RegmechError:
                     raise
                 except Exception as exc:      # a user's derived(): said as a regmech error naming the device

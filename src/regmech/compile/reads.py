@@ -47,10 +47,45 @@ def attach(c) -> None:
                 source = _producer(index, dev, inp) if isinstance(val, StateRead) else val
                 c.sampled.append((int(g.state_index[i, names.index(s)]), source, float(dev._values[period]),
                                   float(dev._values[offset]), dev))
+    _refuse_unread(c)
+    c.branches = _branches_of(c)
     c.z_algebraic = alg
     c.n_alg = int(alg.sum())
     c.has_reads = any(g.tpl.reads for g in c.groups)
     c._alg_levels = _check_loops(c) if c.n_alg else 0
+    #: states only the DAE form holds (algebraic, sampled, branch states): the ODE form refuses the model
+    c.dae_only = bool(c.n_alg or c.sampled or c.branches)
+
+
+def _branches_of(c) -> list:
+    """``(z index, surface index, device)`` of every branch state (``Device.branch_states``)."""
+    out = []
+    for g, start, active in getattr(c, "surface_groups", ()):
+        pos = {int(i): k for k, i in enumerate(range(g.n) if active is None else active)}
+        n_act = len(pos)
+        for i, dev in enumerate(g.devices):
+            for s, kk in getattr(type(dev), "branch_states", {}).items():
+                if i in pos:
+                    out.append((int(g.state_index[i, list(g.tpl.states).index(s)]), start + kk * n_act + pos[i], dev))
+    return out
+
+
+def _refuse_unread(c) -> None:
+    """``ModelError`` for a value of the unknowns given to a parameter that is read as a function of time only
+    (a device that is no kernel: a prescribed motion's reference, a friction device's parameter other than its
+    normal force)."""
+    for dev in c.structure.devices:
+        if dev.device_kind() == "compliant":
+            continue
+        for p, val in dev._values.items():
+            if not isinstance(val, StateRead) or (dev.device_kind() == "friction"
+                                                   and p == getattr(dev, "_force_param", None)):
+                continue
+            raise ModelError(
+                f"{type(dev).__name__} '{dev.name}': parameter '{p}' reads {val!r}, a value of the unknowns, but "
+                f"this device reads '{p}' as a function of time only (a prescribed motion needs its "
+                f"derivatives); drive the mass through a Torque/Force source (tau={val!r}) instead, or give "
+                f"'{p}' a signal")
 
 
 def _state_index(c) -> dict:
@@ -121,12 +156,43 @@ def algebraic_rows(c) -> np.ndarray:
 def settle(c, t, x, v, z) -> np.ndarray:
     """``z`` with its algebraic states solving their equations at ``(t, x, v)`` (``z`` modified in place), the
     sampled states taking their inputs at a sample instant ``t``."""
-    if not c.n_alg and not c.sampled:
+    if not c.n_alg and not c.sampled and not c.branches:
         return z
     _fixed_point(c, t, x, v, z)
-    if c.sampled and _sample(c, t, z):
+    sample = bool(c.sampled)
+    for _ in range(len(c.branches) + 2):
+        changed = _sides(c, t, x, v, z) if c.branches else False
+        if sample:
+            changed = _sample(c, t, z) or changed
+            sample = False
+        if not changed:
+            break
         _fixed_point(c, t, x, v, z)
     return z
+
+
+#: a switching surface's value below this in magnitude is on the surface (its sign is round-off)
+SIDE_TOL = 1e-9
+
+
+def _sides(c, t, x, v, z) -> bool:
+    """Set the branch states from the sides of their surfaces: the signs of the surfaces at ``(t, x, v, z)``,
+    but for those on the surface (``|g| <= SIDE_TOL``), which keep the side the event logic gives them during a
+    run (``hybrid.surfaces`` writes them, flipped at a crossing). Returns whether one changed."""
+    y = np.zeros(c.N)
+    y[c._sx], y[c._sv], y[c._sz] = x, v, z
+    g = c.surface_values(t, y)
+    sides = np.where(g < 0.0, -1.0, 1.0)
+    kept = c.__dict__.get("surface_sides")
+    if kept is not None:
+        # on a surface (a crossing's instant, or a limit held) the sign of g is round-off: the run's side holds
+        sides = np.where(np.abs(g) > SIDE_TOL, sides, kept)
+    changed = False
+    for zi, k, _ in c.branches:
+        val = 1.0 if sides[k] > 0 else 0.0
+        changed = changed or val != z[zi]
+        z[zi] = val
+    return changed
 
 
 def _fixed_point(c, t, x, v, z) -> None:
@@ -166,10 +232,59 @@ def _sample(c, t, z) -> bool:
 
 def refuse_ode_form(c) -> None:
     """``ModelError`` for a model whose algebraic block outputs the ODE form cannot hold."""
-    if getattr(c, "n_alg", 0) or getattr(c, "sampled", ()):
+    if getattr(c, "dae_only", False):
         names = sorted({n.rpartition(".")[0] for k, n in enumerate(c.state_names) if c.z_algebraic[k]}
-                       | {s[4].name for s in c.sampled})
+                       | {s[4].name for s in c.sampled} | {b[2].name for b in c.branches})
         raise ModelError(
             f"model '{c.model.name}' has causal blocks ({', '.join(names[:6])}{' ...' if len(names) > 6 else ''}) "
             f"whose outputs are algebraic unknowns or sampled states, which the ODE form of explicit and expm "
             f"solvers cannot hold; run it with solver='ida' or 'auto'")
+
+
+class Recorded:
+    """A read parameter's values over a run's output rows, as a signal: ``value(t, left)`` at an output
+    instant (the row with that ``t`` and ``left`` flag). ``Device.derived`` reads its signal parameters
+    with ``value``; a parameter read from the unknowns is replaced by this while it runs."""
+
+    def __init__(self, T, L, values):
+        self.T, self.L, self.values = np.asarray(T, float), np.asarray(L, bool), np.asarray(values, float)
+
+    def value(self, t, left=False):
+        hits = np.nonzero(self.T == t)[0]
+        if not len(hits):
+            return float(np.interp(t, self.T, self.values))
+        for i in hits:
+            if bool(self.L[i]) == bool(left):
+                return float(self.values[i])
+        return float(self.values[hits[0]])
+
+    def derivative(self, t, order=1, left=False):
+        return float(np.interp(t, self.T, np.gradient(self.values, self.T))) if order == 1 else 0.0
+
+
+def state_column(c, dev, key) -> int | None:
+    """Index in ``z`` of state ``key`` of ``dev`` (a kernel device of ``c``), or None."""
+    return _state_index(c).get((id(dev), key))
+
+
+class recorded_reads:
+    """``with recorded_reads(c, dev, T, L, Y):`` the parameters of ``dev`` read from the unknowns hold their
+    values over the rows ``Y`` (``Recorded``) for the block's duration."""
+
+    def __init__(self, c, dev, T, L, Y):
+        self.c, self.dev, self.T, self.L, self.Y = c, dev, T, L, Y
+        self.saved = {}
+
+    def __enter__(self):
+        for p, val in list(self.dev._values.items()):
+            if isinstance(val, StateRead):
+                zi = state_column(self.c, val.device, val.key)
+                if zi is not None:
+                    self.saved[p] = val
+                    col = self.Y[:, self.c.iz[zi]] + self.c.state_datum[zi]
+                    self.dev._values[p] = Recorded(self.T, self.L, col)
+        return self
+
+    def __exit__(self, *exc):
+        self.dev._values.update(self.saved)
+        return False

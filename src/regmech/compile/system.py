@@ -563,7 +563,7 @@ class CompiledSystem:
         forward difference along the motion (``rates=False`` skips that: only IDA's
         predictor uses them). ``known``: ``accelerations(t, x, v, z, modes)`` when the caller has it.
         """
-        if self.n_alg or self.sampled:
+        if self.n_alg or self.sampled or self.branches:
             z = reads.settle(self, t, x, v, np.array(z, float))
             known = None
         a, lam, dz = self.accelerations(t, x, v, z, modes) if known is None else known

@@ -45,6 +45,7 @@ class SurfaceSet:
         """Forget a crossing of a previous run (a run starts from the surfaces' signs alone)."""
         self._flipped = None
         self._running = False
+        self.c.surface_sides = None      # branch states (``compile.reads``) take the signs themselves
 
     def begin(self, t, y) -> list[tuple[str, int, int, str]]:
         """Set the sides at the start of a segment from the surfaces' signs at ``(t, y)``; the surfaces
@@ -64,6 +65,7 @@ class SurfaceSet:
         changes = self._changes(self.sides, sides) if self._running else []
         self._running = True
         self.sides = sides
+        self.c.surface_sides = sides
         return changes
 
     def event_values(self, t, y):
@@ -88,6 +90,7 @@ class SurfaceSet:
         sides[idx] = -sides[idx]
         changes = self._changes(self.sides, sides)
         self.sides = sides
+        self.c.surface_sides = sides     # the restart's branch states read the new sides (``compile.reads``)
         self._flipped = (idx, sides[idx])
         return changes
 

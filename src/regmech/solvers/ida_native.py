@@ -242,7 +242,7 @@ def eligible(c, linsolver, deadline=None):
 def _eligible(c, linsolver):
     """``eligible`` computed, but for a wrapped residual."""
     plan = c._plan
-    if getattr(c, "n_alg", 0) or getattr(c, "has_reads", False) or getattr(c, "sampled", ()):
+    if getattr(c, "dae_only", False) or getattr(c, "has_reads", False):
         return "causal blocks (parameters read from the unknowns, algebraic or sampled block states)"
     if getattr(c, "n_surf", 0):
         return "switching surfaces of piecewise laws (contacts located as events in Python)"
