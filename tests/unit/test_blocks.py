@@ -20,10 +20,12 @@ def motor_loop(limits=True, ref=W_REF, J=0.01, d=0.001):
     """SpeedSensor -> PI on the voltage of a DC motor driving an inertia with a viscous load."""
     m = rm.Model("speed_loop")
     inertia = m.add(Inertia("J", J=J))
-    load = m.add(Damper("load", d=d))
+    visc = m.add(Damper("visc", d=d))
     g = m.add(Fixed("g"))
-    m.connect(load.flange_a, inertia.flange_b)
-    m.connect(load.flange_b, g.flange)
+    m.connect(visc.flange_a, inertia.flange_b)
+    m.connect(visc.flange_b, g.flange)
+    load = m.add(Torque("load", tau=0.0))          # a load torque on the inertia (an input to linearise by)
+    m.connect(load.flange, inertia.flange_b)
     ws = m.add(SpeedSensor("ws"))
     m.connect(ws.flange, inertia.flange_b)
     kw = dict(y_min=-24.0, y_max=24.0) if limits else {}
