@@ -235,10 +235,16 @@ def refuse_ode_form(c) -> None:
     if getattr(c, "dae_only", False):
         names = sorted({n.rpartition(".")[0] for k, n in enumerate(c.state_names) if c.z_algebraic[k]}
                        | {s[4].name for s in c.sampled} | {b[2].name for b in c.branches})
+        what = []
+        if names:
+            what.append(f"causal blocks ({', '.join(names[:6])}{' ...' if len(names) > 6 else ''}) whose outputs "
+                        f"are algebraic unknowns or sampled states")
+        points = [c.structure.coord_names[k] for k in getattr(c, "massless", ())]
+        if points:
+            what.append(f"massless points ({', '.join(points[:6])}) whose speeds are algebraic unknowns")
         raise ModelError(
-            f"model '{c.model.name}' has causal blocks ({', '.join(names[:6])}{' ...' if len(names) > 6 else ''}) "
-            f"whose outputs are algebraic unknowns or sampled states, which the ODE form of explicit and expm "
-            f"solvers cannot hold; run it with solver='ida' or 'auto'")
+            f"model '{c.model.name}' has {' and '.join(what)}, which the ODE form of explicit and expm solvers "
+            f"cannot hold; run it with solver='ida' or 'auto'")
 
 
 class Recorded:

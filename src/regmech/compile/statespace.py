@@ -142,7 +142,7 @@ def state_space(c, y, yp, t: float, modes, inputs=None, outputs=None) -> StateSp
     held = _held_states(c)
     keep_rows = np.setdiff1d(np.arange(c.N), c.r_z[held])
     keep_cols = np.setdiff1d(np.arange(c.N), c.iz[held])
-    diff = np.sort(np.concatenate([c.ix[c.Kx], c.iv[c.Kv], c.iz[_differential_states(c, held)]])).astype(int)
+    diff = np.setdiff1d(keep_cols, c.algebraic)      # positions, speeds of masses, differential states
     alg = np.setdiff1d(keep_cols, diff)
     Fy, Fyp = Fy[keep_rows], Fyp[keep_rows]
     E = np.hstack([Fyp[:, diff], Fy[:, alg]])
@@ -188,13 +188,6 @@ def _held_states(c) -> np.ndarray:
     """Indices in z of the states that change only at events (sampled, branch states)."""
     held = [zi for zi, *_ in getattr(c, "sampled", ())] + [zi for zi, *_ in getattr(c, "branches", ())]
     return np.asarray(sorted(set(held)), int)
-
-
-def _differential_states(c, held) -> np.ndarray:
-    alg = getattr(c, "z_algebraic", np.zeros(c.nz, bool))
-    keep = ~alg
-    keep[held] = False
-    return np.nonzero(keep)[0]
 
 
 def _datum(c, cols) -> np.ndarray:

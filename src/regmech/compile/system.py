@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 from ..errors import RegularityWarning, SimulationError, StructureError
 from ..structure.system import (START_RTOL, MechanicalStructure, build_structure, constraint_start_conflict,
                                 gc_paused)
-from . import kkt, reads
+from . import kkt, massless, reads
 from .assembly import PatternBuilder, kernel_terms
 from .evaluation import EvaluationPlan, JacobianPlan
 from .friction_rows import FrictionRows
@@ -86,6 +86,7 @@ class CompiledSystem:
             self.nw_friction = self.friction.add_pattern(self._pb, self.nw_kernel)
             self.jac = self._pb.build()
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
+        massless.check(self)
 
     # -------------------------------------------------------------- pickling
     #: caches that hold SuperLU factorisations (not picklable), plans derived from them, or maps keyed by
@@ -183,11 +184,13 @@ class CompiledSystem:
         self.r_acc = self.ilam[: self.mp + self.mv]
         self.r_fric = self.ilam[self.mp + self.mv:]
         self.r_z = self.iz
-        alg = np.concatenate([self.ix[self.Dx], self.iv[self.Dv], self.iad, self.ilam,
-                              self.iz[reads.algebraic_rows(self)]])
-        self.algebraic = np.sort(alg).astype(int)
         self.is_dummy_v = np.zeros(n, bool)
         self.is_dummy_v[self.Dv] = True
+        massless.attach(self)           # massless coordinates of first-order nodes: their speeds are algebraic
+        self.dae_only = self.dae_only or bool(len(self.massless))
+        alg = np.concatenate([self.ix[self.Dx], self.iv[self.Dv], self.iad, self.ilam,
+                              self.iz[reads.algebraic_rows(self)], self.iv[self.massless]])
+        self.algebraic = np.sort(alg).astype(int)
         self.pos_in_Dv = np.full(n, -1)
         self.pos_in_Dv[self.Dv] = np.arange(len(self.Dv))
 
@@ -396,6 +399,8 @@ class CompiledSystem:
         if not len(rhs):
             return np.zeros(0), np.zeros(0), dz
         sol = self._kkt(modes, relations).solve(rhs)
+        if len(self.massless):
+            sol[self.massless] = 0.0        # no acceleration of their own (``compile.massless``)
         if self.mf and self.friction.state_rows:
             # friction devices' own states read their friction force: known after the solve
             zi, rates = self.friction.state_rates(t, v, sol[self.n:], q, modes)
@@ -563,6 +568,9 @@ class CompiledSystem:
         forward difference along the motion (``rates=False`` skips that: only IDA's
         predictor uses them). ``known``: ``accelerations(t, x, v, z, modes)`` when the caller has it.
         """
+        if len(self.massless):
+            v = massless.speeds(self, t, x, v, z)
+            known = None
         if self.n_alg or self.sampled or self.branches:
             z = reads.settle(self, t, x, v, np.array(z, float))
             known = None

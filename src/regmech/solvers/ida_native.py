@@ -243,7 +243,8 @@ def _eligible(c, linsolver):
     """``eligible`` computed, but for a wrapped residual."""
     plan = c._plan
     if getattr(c, "dae_only", False) or getattr(c, "has_reads", False):
-        return "causal blocks (parameters read from the unknowns, algebraic or sampled block states)"
+        return ("causal blocks or massless points (parameters read from the unknowns; algebraic, sampled or branch "
+                "states; speeds of massless points)")
     if getattr(c, "n_surf", 0):
         return "switching surfaces of piecewise laws (contacts located as events in Python)"
     if plan.nonlinear:
