@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 import regmech as rm
-from regmech.components import Damper, Fixed, IdealGear, Inertia, Mass, Spring, Torque
+from regmech.components import Clutch, Damper, Fixed, IdealGear, Inertia, LossyGear, Mass, Spring, Torque
 from regmech.components.wheel import Rolling
 from regmech.errors import ModelError
+from regmech.signals import Sine, Step
 
 TINY = 1e-7
 
@@ -69,7 +70,25 @@ def dampers(tiny=None):
     return m
 
 
+def heat_losses(tiny=None):
+    """A lossy gear joined to a clutch with no inertia between (as MSL's Rotational HeatLosses)."""
+    m = rm.Model("heat_losses")
+    J1, J2 = m.add(Inertia("J1", J=1.0)), m.add(Inertia("J2", J=2.0))
+    src = m.add(Torque("src", tau=Sine(amplitude=10.0, freq_hz=1.0)))
+    gear = m.add(LossyGear("gear", ratio=2.0, loss_table=[[0.0, 0.8, 0.8, 0.2, 0.2]]))
+    cl = m.add(Clutch("cl", f_normalized=Step(1.0, 0.5), mu=0.3, fn_max=50.0, cgeo=1.0))
+    d, g = m.add(Damper("d", d=1.0)), m.add(Fixed("g"))
+    m.connect(src.flange, J1.flange_a)
+    m.connect(J1.flange_b, gear.flange_a)
+    _node(m, tiny, gear.flange_b, cl.flange_a)
+    m.connect(cl.flange_b, J2.flange_a)
+    m.connect(J2.flange_b, d.flange_a)
+    m.connect(d.flange_b, g.flange)
+    return m
+
+
 @pytest.mark.parametrize("build, signal, note", [
+    (heat_losses, "J2.w", "follows from the constraint of LossyGear 'gear'"),
     (maxwell, "J.w", "first-order node"),
     (vehicle, "car.v", "follows from the constraint of Rolling 'wheel'"),
     (spring_gear, "J2.w", "follows from the constraint of IdealGear 'gear'"),
@@ -82,6 +101,10 @@ def test_massless_node_matches_a_tiny_inertia(build, signal, note):
     res = m.simulate(2.0, dt_out=0.01, accuracy=1e-6)
     ref = build(TINY).simulate(2.0, dt_out=0.01, accuracy=1e-6)
     assert np.max(np.abs(res[signal] - ref[signal])) <= 1e-4 * np.ptp(ref[signal])
+    # the same events (stick/slip, driving side) at the same instants
+    assert [(e.component, e.kind, e.new_mode) for e in res.events] == \
+        [(e.component, e.kind, e.new_mode) for e in ref.events]
+    assert np.allclose([e.t for e in res.events], [e.t for e in ref.events], atol=1e-5)
 
 
 def test_maxwell_element_relaxes_with_its_time_constant():

@@ -29,7 +29,11 @@ NEWTON_MAX = 30
 
 def attach(c) -> None:
     """``c.massless`` (coordinates) and ``c.kkt_mass`` (the masses with the stand-in)."""
-    c.massless = np.nonzero((np.asarray(c.mass) == 0.0) & ~c.is_dummy_v)[0]
+    # a massless coordinate in a rigid row has the mass that row reflects onto it (the acceleration solve sees it);
+    # the first-order nodes are those no rigid row joins
+    in_rows = np.zeros(c.n, bool)
+    in_rows[c.Gpv.indices] = True
+    c.massless = np.nonzero((np.asarray(c.mass) == 0.0) & ~c.is_dummy_v & ~in_rows)[0]
     kkt_mass = np.asarray(c.mass, float).copy()
     if len(c.massless):
         positive = kkt_mass[kkt_mass > 0]

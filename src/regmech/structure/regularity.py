@@ -84,15 +84,17 @@ def _determinate_note(node: Node) -> str | None:
       the speed (a damper at the node) is decided by the compiler (``compile.massless``), which refuses the
       node with the message of ``_massless_node_message`` otherwise.
 
-    A friction device on a massless node stays refused (Position 3)."""
+    A friction device on a massless node without a rigid row stays refused (Position 3: its closing needs an
+    inertia on each side, which a rigid row reflects onto the node)."""
     devs = node.devices()
     kinds = [d.device_kind() for d in devs]
-    if "friction" in kinds:
-        return None
     rigid = [d for d in devs if "rigid" in d.row_kinds() or d.device_kind() in ("rigid", "position")]
     if rigid:
+        # a clutch there sees the inertia the rigid row reflects onto the point (Position 3 holds through it)
         return (f"massless point {node.label()}: its motion follows from the constraint of {_names(rigid)} "
                 f"(a dependent coordinate; its force balance gives the constraint force)")
+    if "friction" in kinds:
+        return None
     if all(k == "compliant" for k in kinds):
         return (f"massless point {node.label()}: first-order node between {_names(devs)} (its position a state, "
                 f"its speed from the balance of their forces)")
