@@ -251,3 +251,25 @@ def test_limits_in_the_wrong_order_are_named():
         Saturation("sat", u=1.0, y_min=1.0, y_max=0.0)
     with pytest.raises(ParameterError, match=r"PI 'pi': needs y_min < y_max"):
         PI("pi", u=1.0, ref=0.0, k=1.0, T_i=1.0, y_min=2.0, y_max=1.0)
+
+
+def test_engine_idle_speed_loop_through_a_throttle_actuator_lag():
+    from regmech.components import Engine
+    m = rm.Model("idle")
+    J = m.add(Inertia("J", J=0.2, w0=80.0))
+    ws = m.add(SpeedSensor("ws"))
+    m.connect(ws.flange, J.flange_b)
+    pi = m.add(PI("idle", u=ws.y, ref=85.0, k=0.05, T_i=0.5, y_min=0.0, y_max=1.0))
+    act = m.add(Lag("act", u=pi.y, T=0.05))
+    eng = m.add(Engine("eng", torque_map=[[0, 100], [300, 150], [600, 100]], drag_map=[[0, -10], [600, -40]],
+                       throttle=act.y))
+    load, g = m.add(Damper("load", d=0.5)), m.add(Fixed("g"))
+    m.connect(eng.flange, J.flange_a)
+    m.connect(J.flange_b, load.flange_a)
+    m.connect(load.flange_b, g.flange)
+    res = m.simulate(10.0)
+    assert abs(res["J.w"][-1] - 85.0) <= 1e-6 * 85.0
+    # at rest the engine's torque carries the load: thr T_full(w) + (1 - thr) T_drag(w) = d w
+    w, thr = 85.0, res["act.y"][-1]
+    full, drag = np.interp(w, [0, 300, 600], [100, 150, 100]), np.interp(w, [0, 600], [-10, -40])
+    assert thr * full + (1 - thr) * drag == pytest.approx(0.5 * w, rel=1e-6)
