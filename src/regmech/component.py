@@ -537,6 +537,10 @@ class Device(Component):
     #: position in ``switching_surfaces()``; the state's rate is 0 and it is 1 on the positive side, 0 on the
     #: negative one, set at every restart (a law that jumps at the surface reads it, so no step meets the jump)
     branch_states: ClassVar[dict[str, int]] = {}
+    #: states with memory, changed where a switching surface becomes positive: name -> ((surface position, increment),
+    #: ...); the state's rate is 0; each time surface k crosses to g > 0 (located as an event) the state grows by
+    #: its increment (a relay with hysteresis, a gear selection): the surfaces are written so that the new value
+    #: puts them back below zero
     #: True for devices that feed energy in (sources): the energy audit counts
     #: their absorbed power with the opposite sign, as work of the sources
     is_source: ClassVar[bool] = False

@@ -273,3 +273,58 @@ def test_engine_idle_speed_loop_through_a_throttle_actuator_lag():
     w, thr = 85.0, res["act.y"][-1]
     full, drag = np.interp(w, [0, 300, 600], [100, 150, 100]), np.interp(w, [0, 600], [-10, -40])
     assert thr * full + (1 - thr) * drag == pytest.approx(0.5 * w, rel=1e-6)
+
+
+def test_relay_with_hysteresis_holds_the_speed_between_its_levels():
+    from regmech.blocks import Hysteresis
+    m = rm.Model("relay")
+    J = m.add(Inertia("J", J=1.0))
+    d, g = m.add(Damper("d", d=1.0)), m.add(Fixed("g"))
+    m.connect(J.flange_b, d.flange_a)
+    m.connect(d.flange_b, g.flange)
+    ws = m.add(SpeedSensor("ws"))
+    m.connect(ws.flange, J.flange_b)
+    rel = m.add(Hysteresis("rel", u=ws.y, u_low=4.0, u_high=6.0, y_on=0.0, y_off=10.0))
+    tq = m.add(Torque("tq", tau=rel.y))
+    m.connect(tq.flange, J.flange_a)
+    res = m.simulate(10.0, dt_out=0.01)
+    w = res["J.w"]
+    # w' = 10 - w while off (from 0 up to 6), w' = -w while on (down to 4): a limit cycle between the levels
+    assert w.max() == pytest.approx(6.0, abs=1e-6)
+    assert w[res.t > 1.0].min() == pytest.approx(4.0, abs=1e-6)
+    t_on = math.log(10.0 / 4.0)                 # first switch: 10 (1 - exp(-t)) = 6
+    ups = [e.t for e in res.events if e.kind == "latch" and e.new_mode > 0]
+    downs = [e.t for e in res.events if e.kind == "latch" and e.new_mode < 0]
+    assert ups[0] == pytest.approx(t_on, abs=1e-6)
+    # each half cycle: down from 6 to 4 takes ln(6/4), up from 4 to 6 takes ln(6/4) (10 - w from 6 to 4)
+    assert downs[0] - ups[0] == pytest.approx(math.log(1.5), abs=1e-6)
+    assert ups[1] - downs[0] == pytest.approx(math.log(1.5), abs=1e-6)
+
+
+def test_shift_schedule_shifts_on_its_lines_without_hunting():
+    from regmech.blocks import ShiftSchedule, VelocitySensor
+    from regmech.components import Force, Mass
+    from regmech.signals import Sine
+    m = rm.Model("schedule")
+    car = m.add(Mass("car", m=1.0))
+    vs = m.add(VelocitySensor("vs"))
+    m.connect(vs.flange, car.flange_a)
+    sch = m.add(ShiftSchedule("sch", v=vs.y, thr=0.5, up=[[5, 10], [10, 20]], down=[[3, 6], [6, 12]]))
+    f = m.add(Force("f", f=Sine(amplitude=5.0, freq_hz=0.05)))
+    m.connect(f.flange, car.flange_b)
+    res = m.simulate(20.0, dt_out=0.05, accuracy=1e-8)
+    # v = (5 / omega) (1 - cos(omega t)): up lines at thr 0.5: 7.5 and 15, down lines 4.5 and 9
+    omega = 2 * math.pi * 0.05
+    shifts = [(e.t, e.new_mode) for e in res.events if e.component == "sch"]
+    assert [s for _, s in shifts] == [1, 1, -1, -1]
+    for (t, _), level in zip(shifts, (7.5, 15.0, 9.0, 4.5)):
+        assert 5.0 / omega * (1 - math.cos(omega * t)) == pytest.approx(level, abs=1e-6)
+    assert res["sch.y"].max() == 3.0 and res["sch.y"][-1] == 1.0
+
+
+def test_shift_schedule_refuses_overlapping_lines_and_hysteresis_levels():
+    from regmech.blocks import Hysteresis, ShiftSchedule
+    with pytest.raises(ParameterError, match=r"ShiftSchedule 'sch': the down line of gear 2 .* below the up line"):
+        ShiftSchedule("sch", v=1.0, up=[[5, 10]], down=[[6, 8]])
+    with pytest.raises(ParameterError, match=r"Hysteresis 'h': needs u_low < u_high"):
+        Hysteresis("h", u=1.0, u_low=2.0, u_high=1.0)

@@ -48,25 +48,34 @@ def attach(c) -> None:
                 c.sampled.append((int(g.state_index[i, names.index(s)]), source, float(dev._values[period]),
                                   float(dev._values[offset]), dev))
     _refuse_unread(c)
-    c.branches = _branches_of(c)
+    c.branches = _branches_of(c, "branch_states")
+    c.latches = _branches_of(c, "latch_states")
     c.z_algebraic = alg
     c.n_alg = int(alg.sum())
     c.has_reads = any(g.tpl.reads for g in c.groups)
     c._alg_levels = _check_loops(c) if c.n_alg else 0
     #: states only the DAE form holds (algebraic, sampled, branch states): the ODE form refuses the model
-    c.dae_only = bool(c.n_alg or c.sampled or c.branches)
+    c.dae_only = bool(c.n_alg or c.sampled or c.branches or c.latches)
+    #: the surfaces of latch states (``hybrid.surfaces`` takes their side from their sign after a crossing)
+    c.latch_surfaces = np.array(sorted({k for _, k, _, _ in c.latches}), int)
 
 
-def _branches_of(c) -> list:
-    """``(z index, surface index, device)`` of every branch state (``Device.branch_states``)."""
+def _branches_of(c, attr) -> list:
+    """Branch states (``Device.branch_states``): ``(z index, surface index, device)``; latch states
+    (``Device.latch_states``): ``(z index, surface index, increment, device)``, one entry per surface."""
     out = []
     for g, start, active in getattr(c, "surface_groups", ()):
         pos = {int(i): k for k, i in enumerate(range(g.n) if active is None else active)}
         n_act = len(pos)
         for i, dev in enumerate(g.devices):
-            for s, kk in getattr(type(dev), "branch_states", {}).items():
-                if i in pos:
-                    out.append((int(g.state_index[i, list(g.tpl.states).index(s)]), start + kk * n_act + pos[i], dev))
+            if i not in pos:
+                continue
+            for s, spec in getattr(type(dev), attr, {}).items():
+                zi = int(g.state_index[i, list(g.tpl.states).index(s)])
+                if attr == "branch_states":
+                    out.append((zi, start + spec * n_act + pos[i], dev))
+                else:
+                    out += [(zi, start + kk * n_act + pos[i], float(inc), dev) for kk, inc in spec]
     return out
 
 
@@ -156,12 +165,14 @@ def algebraic_rows(c) -> np.ndarray:
 def settle(c, t, x, v, z) -> np.ndarray:
     """``z`` with its algebraic states solving their equations at ``(t, x, v)`` (``z`` modified in place), the
     sampled states taking their inputs at a sample instant ``t``."""
-    if not c.n_alg and not c.sampled and not c.branches:
+    if not c.n_alg and not c.sampled and not c.branches and not c.latches:
         return z
     _fixed_point(c, t, x, v, z)
     sample = bool(c.sampled)
-    for _ in range(len(c.branches) + 2):
+    for _ in range(len(c.branches) + LATCH_MAX + 2):
         changed = _sides(c, t, x, v, z) if c.branches else False
+        if c.latches:
+            changed = _latch(c, t, x, v, z) or changed
         if sample:
             changed = _sample(c, t, z) or changed
             sample = False
@@ -173,6 +184,23 @@ def settle(c, t, x, v, z) -> np.ndarray:
 
 #: a switching surface's value below this in magnitude is on the surface (its sign is round-off)
 SIDE_TOL = 1e-9
+#: latch changes at one restart at most (a gear selection settling from first to the right gear at the start)
+LATCH_MAX = 32
+
+
+def _latch(c, t, x, v, z) -> bool:
+    """Grow the latch states whose surface is above zero (clearly, or on it just after the run crossed it:
+    ``hybrid.surfaces`` flipped its side); returns whether one changed. Each change puts its surface back
+    below zero (the device's design), so the next call finds nothing more to do."""
+    y = np.zeros(c.N)
+    y[c._sx], y[c._sv], y[c._sz] = x, v, z
+    g = c.surface_values(t, y)
+    kept = c.__dict__.get("surface_sides")
+    for zi, k, inc, _ in c.latches:
+        if g[k] > SIDE_TOL or (kept is not None and kept[k] > 0 and g[k] > -SIDE_TOL):
+            z[zi] += inc
+            return True             # one change at a time: the surfaces depend on the state
+    return False
 
 
 def _sides(c, t, x, v, z) -> bool:
@@ -234,7 +262,8 @@ def refuse_ode_form(c) -> None:
     """``ModelError`` for a model whose algebraic block outputs the ODE form cannot hold."""
     if getattr(c, "dae_only", False):
         names = sorted({n.rpartition(".")[0] for k, n in enumerate(c.state_names) if c.z_algebraic[k]}
-                       | {s[4].name for s in c.sampled} | {b[2].name for b in c.branches})
+                       | {s[4].name for s in c.sampled} | {b[2].name for b in c.branches}
+                       | {b[3].name for b in c.latches})
         what = []
         if names:
             what.append(f"causal blocks ({', '.join(names[:6])}{' ...' if len(names) > 6 else ''}) whose outputs "

@@ -186,7 +186,8 @@ def _jacobians(c, t, y, yp, modes):
 
 def _held_states(c) -> np.ndarray:
     """Indices in z of the states that change only at events (sampled, branch states)."""
-    held = [zi for zi, *_ in getattr(c, "sampled", ())] + [zi for zi, *_ in getattr(c, "branches", ())]
+    held = [zi for zi, *_ in getattr(c, "sampled", ())] + [zi for zi, *_ in getattr(c, "branches", ())] + \
+        [zi for zi, *_ in getattr(c, "latches", ())]
     return np.asarray(sorted(set(held)), int)
 
 

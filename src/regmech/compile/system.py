@@ -571,7 +571,7 @@ class CompiledSystem:
         if len(self.massless):
             v = massless.speeds(self, t, x, v, z)
             known = None
-        if self.n_alg or self.sampled or self.branches:
+        if self.n_alg or self.sampled or self.branches or self.latches:
             z = reads.settle(self, t, x, v, np.array(z, float))
             known = None
         a, lam, dz = self.accelerations(t, x, v, z, modes) if known is None else known

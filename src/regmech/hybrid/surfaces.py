@@ -40,6 +40,10 @@ class SurfaceSet:
             devices.setdefault(name, []).append((k, code))
         self._devices = devices
         self._kinds = getattr(c, "surface_kinds", {})
+        #: surfaces of latch states (``compile.reads``): after a crossing the latch moves and its surface jumps
+        #: back below zero, so the next segment takes their side from their sign, not from the flip
+        self._latch = np.zeros(self.n_events, bool)
+        self._latch[np.asarray(getattr(c, "latch_surfaces", ()), int)] = True
 
     def reset(self):
         """Forget a crossing of a previous run (a run starts from the surfaces' signs alone)."""
@@ -60,9 +64,16 @@ class SurfaceSet:
         sides = np.where(g < 0.0, -1.0, 1.0)
         if self._flipped is not None:
             idx, kept = self._flipped
-            sides[idx] = kept
+            on = ~self._latch[idx]
+            sides[idx[on]] = kept[on]
             self._flipped = None
-        changes = self._changes(self.sides, sides) if self._running else []
+        if self._latch.any():
+            # a latch's surface back below zero after its crossing is no change of its own (``cross`` reported it)
+            sides_cmp = sides.copy()
+            sides_cmp[self._latch] = self.sides[self._latch]
+        else:
+            sides_cmp = sides
+        changes = self._changes(self.sides, sides_cmp) if self._running else []
         self._running = True
         self.sides = sides
         self.c.surface_sides = sides
