@@ -328,3 +328,31 @@ def test_shift_schedule_refuses_overlapping_lines_and_hysteresis_levels():
         ShiftSchedule("sch", v=1.0, up=[[5, 10]], down=[[6, 8]])
     with pytest.raises(ParameterError, match=r"Hysteresis 'h': needs u_low < u_high"):
         Hysteresis("h", u=1.0, u_low=2.0, u_high=1.0)
+
+
+def test_gearbox_follows_a_shift_schedule_block():
+    from regmech.blocks import ShiftSchedule
+    from regmech.components import Gearbox
+    m = rm.Model("car")
+    eng = m.add(Inertia("eng", J=0.2))
+    drive = m.add(Torque("drive", tau=30.0))
+    m.connect(drive.flange, eng.flange_a)
+    car = m.add(Inertia("car", J=5.0))
+    drag, g = m.add(Damper("drag", d=0.5)), m.add(Fixed("g"))
+    m.connect(car.flange_b, drag.flange_a)
+    m.connect(drag.flange_b, g.flange)
+    ws = m.add(SpeedSensor("ws"))
+    m.connect(ws.flange, car.flange_a)
+    sch = m.add(ShiftSchedule("sch", v=ws.y, thr=0.5, up=[[5, 10], [10, 20]], down=[[3, 6], [6, 12]]))
+    box = m.add(Gearbox("box", ratios=[3.0, 2.0, 1.0], capacity=400.0, gear=sch.y, gear0=1))
+    m.connect(eng.flange_b, box.flange_a)
+    m.connect(box.flange_b, car.flange_a)
+    assert box.schedule is None
+    res = m.simulate(10.0, dt_out=0.05)
+    ups = [e.t for e in res.events if e.component == "sch"]
+    assert len(ups) == 2                      # 1 -> 2 at 7.5 rad/s, 2 -> 3 at 15 rad/s, no hunting after
+    assert res.at("car.w", ups[0]) == pytest.approx(7.5, rel=1e-6)
+    assert res.at("car.w", ups[1]) == pytest.approx(15.0, rel=1e-6)
+    # in third gear (ratio 1) the engine turns with the car once the element has locked
+    assert res["eng.w"][-1] == pytest.approx(res["car.w"][-1], rel=1e-6)
+    assert any(e.component == "box.shift3" and e.new_mode == 0 for e in res.events)

@@ -12,13 +12,13 @@ The outputs are exported as result signals ``res["pi.y"]``.
 """
 
 from .base import Block, Input, Output, Sensor
-from .continuous import PI, PID, Integrator, Lag
+from .continuous import PI, PID, Integrator, Lag, ShiftElement
 from .discrete import Hysteresis, SampleClock, SampleHold, ShiftSchedule
 from .math import Compare, Constant, Feedback, Gain, Max, Min, Product, Saturation, Sum, Switch, Table1D
 from .sensors import AngleSensor, PositionSensor, RelAngleSensor, RelSpeedSensor, SpeedSensor, VelocitySensor
 
 __all__ = ["Block", "Input", "Output", "Sensor", "PI", "PID", "Integrator", "Lag", "SampleHold", "SampleClock",
-           "Hysteresis", "ShiftSchedule",
+           "Hysteresis", "ShiftSchedule", "ShiftElement",
            "Compare", "Constant", "Feedback", "Gain", "Max", "Min", "Product", "Saturation", "Sum", "Switch",
            "Table1D", "AngleSensor", "PositionSensor", "RelAngleSensor", "RelSpeedSensor", "SpeedSensor",
            "VelocitySensor"]

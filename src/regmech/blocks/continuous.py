@@ -149,4 +149,28 @@ class PID(PI):
         return out
 
 
-__all__ = ["Lag", "Integrator", "PI", "PID"]
+class ShiftElement(Block):
+    """The normalised force of a transmission's shift element k from a gear selection (a ``ShiftSchedule``'s
+    output): the target is 1 while ``gear`` is k, else 0; the state ``f`` follows it at the first-order rates
+    ``df/dt = (target - f) / T`` with ``T = engage_time / 3`` when applying and ``release_time / 3`` when
+    releasing (95 % of the way in the given time); the output ``y = min(max(f, 0), 1)`` [1] (``f_normalized``'s
+    range). The gear changes only at the schedule's events, so the target jumps only at restarts."""
+
+    outputs = {"y": "1"}
+    internal = {"f": "f0"}
+    gear = Input(unit="1", doc="selected gear (a ShiftSchedule's y)")
+    k = Param(check="positive", doc="the gear of this element")
+    engage_time = Param(0.3, check="positive", unit="s", doc="time to apply the element")
+    release_time = Param(0.1, check="positive", unit="s", doc="time to release the element")
+    f0 = Param(0.0, check="real", doc="start of the normalised force")
+
+    def output_laws(self, e, de):
+        return {"y": clip(self.f, 0.0, 1.0)}
+
+    def rates(self, e, de):
+        target = sympy.Piecewise((1.0, abs(self.gear - self.k) < 0.5), (0.0, True))
+        t_c = sympy.Piecewise((self.engage_time / 3, target > self.f), (self.release_time / 3, True))
+        return {"f": (target - self.f) / t_c}
+
+
+__all__ = ["Lag", "Integrator", "PI", "PID", "ShiftElement"]
