@@ -9,10 +9,23 @@ parameters and its inputs. An output with its own dynamics (a ``Lag``'s) is a di
 ``t`` or another block's output ``<block>.y`` (a ``component.StateRead``), read from the unknowns by the
 compiler (``compile.reads``); so is every signal parameter of every other component (``DCMotor(u=pi.y)``).
 
-Discontinuities: kinks of a continuous output (limits, ``Min``/``Max``) and jumps (``Switch``, ``Compare``)
-are switching surfaces (``switching_surfaces``, events of kind "limit" located by the solver, which restarts
-there); kinks of a table are left to the step-size control (the output is continuous). Sample instants are
-time events (``SampleHold``).
+Discontinuities, chosen per block:
+
+* kinks of a continuous output (``Saturation``, the limits of ``PI``/``PID``, ``Min``/``Max``): switching
+  surfaces (``switching_surfaces``), located as events (kind "limit") where the solver restarts; the law
+  itself is evaluated on both sides (it is continuous);
+* jumps (``Compare``, ``Switch``, the stops of a limited ``Integrator``): the branch is a state of rate 0
+  (``Device.branch_states``) set at every restart from the side of its surface, so no step meets the jump
+  (events of kind "switch"/"limit");
+* memory (``Hysteresis``, ``ShiftSchedule``): a latch state (``Device.latch_states``) that changes where its
+  surface becomes positive (events of kind "latch");
+* sampling (``SampleHold``): time events at the sample instants, where the held state takes its input;
+* kinks of a ``Table1D``: left to the step-size control (the output is continuous).
+
+An algebraic loop (outputs that depend on each other at the same instant through direct feedthrough) is
+refused by name when the model is compiled (``compile.reads``); a ``Lag``, ``Integrator`` or ``SampleHold``
+in the loop breaks it. The models with blocks run on IDA's Python path (``solvers.ida``); explicit and expm
+solvers refuse them by name.
 """
 
 from __future__ import annotations
