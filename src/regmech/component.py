@@ -62,6 +62,23 @@ class Command:
 CHECKS = ("real", "positive", "nonnegative", "nonzero", "signal", "table", "choice", "any")
 
 
+class StateRead:
+    """A value of the unknowns of the DAE that a signal parameter reads instead of a function of time: state
+    ``key`` of device ``device`` (a causal block's output, ``regmech.blocks``), in ``unit``.
+
+    Any parameter that takes a ``Signal`` takes one. The compiler makes the parameter an argument of the
+    device's laws read from the unknowns (``compile.reads``): its value at every residual, Jacobian, event
+    function and output, with the Jacobian entries ``d law / d input`` placed at the producer's column."""
+
+    __slots__ = ("device", "key", "unit")
+
+    def __init__(self, device, key: str, unit: str = ""):
+        self.device, self.key, self.unit = device, key, unit
+
+    def __repr__(self) -> str:
+        return f"{self.device.name}.{self.key}"
+
+
 class Param:
     """A declared parameter with a range check.
 
@@ -133,6 +150,14 @@ class Param:
                 return value
         where = f"{type(comp).__name__} '{comp.name}'"
         if self.check == "signal":
+            if isinstance(value, StateRead):
+                want = self.unit_in(getattr(comp, "domain", ROTATIONAL))
+                if want and value.unit and want != value.unit:
+                    raise ParameterError(
+                        f"{where}: parameter '{self.name}' is in [{want}] but {value!r} is in [{value.unit}]; "
+                        f"convert it with a block in between (e.g. blocks.Gain(u={value!r}, k=...) or a "
+                        f"controller whose output is in [{want}])")
+                return value
             if isinstance(value, Command):
                 if not self.command:
                     raise ParameterError(
@@ -516,6 +541,20 @@ class Device(Component):
     }
     #: internal differential states: name -> name of the start parameter (or None)
     states: ClassVar[dict[str, str | None]] = {}
+    #: states that are algebraic unknowns rather than differential ones: ``derivatives()`` gives for each the
+    #: residual ``f - s`` of its equation ``s = f(...)`` (the compiler writes the row ``s - f = 0``, no ``s'``)
+    algebraic_states: ClassVar[tuple[str, ...]] = ()
+    #: states held between sample instants: name -> (input parameter, period parameter, offset parameter); the
+    #: state's rate is 0 and at every instant ``offset + k * period`` it takes the input's value
+    sampled_states: ClassVar[dict[str, tuple[str, str, str]]] = {}
+    #: states that say which side of one of the device's switching surfaces the run is on: name -> the surface's
+    #: position in ``switching_surfaces()``; the state's rate is 0 and it is 1 on the positive side, 0 on the
+    #: negative one, set at every restart (a law that jumps at the surface reads it, so no step meets the jump)
+    branch_states: ClassVar[dict[str, int]] = {}
+    #: states with memory, changed where a switching surface becomes positive: name -> ((surface position, increment),
+    #: ...); the state's rate is 0; each time surface k crosses to g > 0 (located as an event) the state grows by
+    #: its increment (a relay with hysteresis, a gear selection): the surfaces are written so that the new value
+    #: puts them back below zero
     #: True for devices that feed energy in (sources): the energy audit counts
     #: their absorbed power with the opposite sign, as work of the sources
     is_source: ClassVar[bool] = False
@@ -655,5 +694,5 @@ def numeric_params(cls) -> list[str]:
             if p.check in ("real", "positive", "nonnegative", "nonzero")]
 
 
-__all__ = ["Param", "Command", "Component", "Body", "Ground", "Device", "Subsystem", "REQUIRED", "Signal", "read_only",
+__all__ = ["Param", "Command", "StateRead", "Component", "Body", "Ground", "Device", "Subsystem", "REQUIRED", "Signal", "read_only",
            "ROTATIONAL", "TRANSLATIONAL"]

@@ -252,9 +252,17 @@ class Model:
         return simulate(self, t_end=t_end, dt_out=dt_out, solver=solver, accuracy=accuracy, t_start=t_start,
                         **options)
 
-    def linearize(self, t: float = 0.0, modes=None, at=None, **options):
-        """Structural-matrix form ``M q'' + B q' + C q = W u`` about an operating point (see
-        ``compile.linear.linearize``; ``options``: e.g. ``sparse=True``).
+    def linearize(self, t: float = 0.0, modes=None, at=None, inputs=None, outputs=None, **options):
+        """The model linearised about an operating point.
+
+        A model of masses and devices without internal states, asked without ``inputs``/``outputs``: the
+        structural-matrix form ``M q'' + B q' + C q = W u`` (``compile.linear.linearize``; ``options``: e.g.
+        ``sparse=True``). A model with internal states (electric machines, controllers, causal blocks), or
+        one asked with ``inputs=[...]``/``outputs=[...]`` or ``form="state_space"``: the first-order
+        ``StateSpace`` ``x' = A x + B u``, ``y = C x + D u`` (``compile.statespace``) with named ``states``,
+        ``inputs`` (``"<device>.<signal parameter>"``, e.g. ``"load.tau"``; default all) and ``outputs``
+        (``"J.w"``, ``"pi.y"``, ``"spring.phi_rel"``; default the states); both forms give the same poles
+        where both apply.
 
         ``at``: None (the scene's start values at ``t``), a dict of mass positions and speeds, a tuple
         ``(x, v)``, or a ``Result`` of a simulation of this model (also one loaded from a file): then the
@@ -270,6 +278,9 @@ class Model:
         from .compile.linear import linearize
         from .result import Result
         c = self.compile()
+        form = options.pop("form", None)
+        if inputs is not None or outputs is not None or c.nz or form == "state_space":
+            return _state_space(c, t, modes, at, inputs, outputs)
         if isinstance(at, Result):
             modes, at = _run_point(c, at, t, modes)
         elif at is None and modes is not None:
@@ -362,3 +373,36 @@ def _start_point(c, t, modes):
                   f"(mass-weighted, momentum kept). To linearise where a run is, pass at=res "
                   f"(m.linearize(at=m.simulate(T), t=T))", UserWarning, stacklevel=3)
     return x, v
+
+
+def _state_space(c, t, modes, at, inputs, outputs):
+    """``Model.linearize``'s first-order form: the operating point (a run's state at ``t``, the start values,
+    a dict or ``(x, v)`` of the masses), made consistent with the block outputs, then ``state_space``."""
+    import numpy as np
+    from .compile.linear import _operating_point, _resolve_modes
+    from .compile.statespace import state_space
+    from .errors import ParameterError
+    from .hybrid import attach
+    from .result import Result
+
+    attach(c)
+    t = float(t)
+    saved = c._t_right, c.__dict__.get("surface_sides")
+    c._t_right, c.surface_sides = np.inf, None
+    try:
+        if isinstance(at, Result):
+            modes, (x, v) = _run_point(c, at, t, modes)
+            z = np.zeros(c.nz)
+            for j, name in enumerate(c.state_names):
+                if name not in at:
+                    raise ParameterError(f"linearize(at=res): the result has no signal '{name}' (a state of model "
+                                         f"'{c.model.name}'); pass a result of a run of this model")
+                z[j] = at.at(name, t) - c.state_datum[j]
+        else:
+            modes = _resolve_modes(c, modes)
+            x, v = _operating_point(c, t, modes, at)
+            z = c.state_start.copy()
+        y, yp = c.assemble_y(t, x, v, z, modes, rates=False)
+        return state_space(c, y, yp, t, modes, inputs, outputs)
+    finally:
+        c._t_right, c.surface_sides = saved

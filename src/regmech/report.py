@@ -114,6 +114,7 @@ class ModelReport:
         if reg is not None:
             lines.append(f"  {reg.masses} mass node(s), {reg.grounded_nodes} ground node(s), "
                          f"{reg.driven_nodes} driven node(s), {reg.devices} device(s)")
+            lines += [f"  reduced: {note}" for note in getattr(reg, "notes", ())]
         cons = ", ".join(f"{v} {k}" for k, v in self.constraints.items() if v) or "none"
         lines.append(f"  {self.coordinates} mass coordinates, {self.dof} degrees of freedom; {self.states} states "
                      f"({self.internal_states} internal); constraint rows: {cons}")

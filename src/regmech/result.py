@@ -48,7 +48,10 @@ class Event:
     controller's output (``PI``, ``PICommand``, ``Driver``) reached or left a limit: +1 at the upper
     limit, -1 at the lower one, 0 between them. ``kind`` "flow": a torque converter's fluid path
     (``ConverterFluid``) crossed ``w_t = -w_p``, the kink of its law in counter-rotation (+1 the side
-    ``w_p + w_t > 0``, 0 the other). Filter on ``kind`` to compare mode sequences.
+    ``w_p + w_t > 0``, 0 the other). ``kind`` "switch": a block whose output jumps (``blocks.Compare``,
+    ``blocks.Switch``) saw its input cross its level: 1 above it, 0 below. ``kind`` "latch": a block with memory
+    (``blocks.Hysteresis``, ``blocks.ShiftSchedule``) switched up (``new_mode`` +1) or down (-1). Filter on ``kind`` to compare mode
+    sequences.
     """
 
     t: float
@@ -78,6 +81,12 @@ class Event:
         if self.kind == "limit":
             return (f"t={self.t:.6g}{err}: {self.component} output: {LIMIT_NAMES.get(self.old_mode, self.old_mode)} "
                     f"-> {LIMIT_NAMES.get(self.new_mode, self.new_mode)}")
+        if self.kind == "latch":
+            return f"t={self.t:.6g}{err}: {self.component} latch: {'up' if self.new_mode > 0 else 'down'}"
+        if self.kind == "switch":
+            side = {1: "above", 0: "below"}
+            return (f"t={self.t:.6g}{err}: {self.component} switch: input {side.get(self.old_mode, self.old_mode)} -> "
+                    f"{side.get(self.new_mode, self.new_mode)} its level")
         if self.kind == "flow":
             return (f"t={self.t:.6g}{err}: {self.component} {FLOW_NAMES.get(self.old_mode, self.old_mode)} -> "
                     f"{FLOW_NAMES.get(self.new_mode, self.new_mode)}")

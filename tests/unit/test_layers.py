@@ -3,7 +3,7 @@
     components -> Model -> structure/ -> compile/ -> hybrid/ -> solvers/ -> analysis/, bench/, cli, ...
 
 Each layer imports only itself and the layers above it in this list; compile/, hybrid/ and
-solvers/ never import a component module (a solver never knows a component class). The core
+solvers/ never import a component or block module (a solver never knows a component class). The core
 modules (errors, ports, units, signals, mode codes, the component base, results, reports) are shared by all and
 import no layer. ``model.py`` is the user's facade: it reaches the layers below it only inside
 its methods (``Model.compile``, ``Model.simulate``), never when it is imported.
@@ -22,7 +22,7 @@ SRC = Path(__file__).resolve().parents[2] / "src" / "regmech"
 
 #: the layers' order, top (imported by the others) first; a unit is a subpackage or a top-level module
 LAYERS = [
-    {"components"},
+    {"components", "blocks"},
     {"model"},
     {"structure"},
     {"compile"},
@@ -87,8 +87,9 @@ def violations(source: str, module: str, is_package: bool = False) -> list[str]:
         elif own == "model":
             if not in_function:
                 bad.append(f"{where} when it is imported: the Model facade reaches the layers only in its methods")
-        elif own in NEVER_COMPONENTS and dep == "components":
-            bad.append(f"{where}: {own}/ never imports a component module (the hybrid layer holds the mode logic)")
+        elif own in NEVER_COMPONENTS and dep in ("components", "blocks"):
+            bad.append(f"{where}: {own}/ never imports a component or block module (the hybrid layer holds the mode "
+                       f"logic)")
         elif own in RANK and dep in RANK and RANK[dep] > RANK[own]:
             bad.append(f"{where}: {own} imports {dep}, a layer below it")
         elif own in RANK and dep not in RANK:
@@ -121,6 +122,8 @@ def test_imports_follow_the_layers():
     ("regmech.compile.system", "from ..components.friction import FrictionSet", True),
     ("regmech.compile.system", "def f():\n    from regmech.components import Clutch", True),
     ("regmech.solvers.ida", "from ..components import friction", True),
+    ("regmech.solvers.auto", "from ..blocks import PI", True),
+    ("regmech.blocks.base", "from ..compile.reads import settle", True),
     ("regmech.hybrid.logic", "from ..solvers.ida import simulate_ida", True),
     ("regmech.compile.system", "from ..hybrid import attach", True),
     ("regmech.structure.system", "from .. import compile", True),

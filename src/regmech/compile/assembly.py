@@ -110,6 +110,8 @@ def input_entries(c, g, wname: str, wj: int) -> Ragged:
         return csr_rows(c.Sc, g.row_index[:, wj], c.ix)
     if wname == "de":
         return csr_rows(c.Sc, g.row_index[:, wj], c.iv)
+    if wname == "r":           # a signal parameter read from the unknowns (``compile.reads``)
+        return single(c.iz[g.read_index[:, wj]])
     return single(c.iz[g.state_index[:, wj]])
 
 

@@ -197,7 +197,8 @@ class EvaluationPlan:
         row = 0
         for g in self.nonlinear:
             k, ns = g.tpl.k, len(g.tpl.states)
-            blocks = [("e", j) for j in range(k)] + [("de", j) for j in range(k)] + [("z", s) for s in range(ns)]
+            blocks = [("e", j) for j in range(k)] + [("de", j) for j in range(k)] + [("z", s) for s in range(ns)] + \
+                [("r", j) for j in range(len(g.tpl.reads))]
             self.nl_args.append((g, row, len(blocks)))
             for b, (wname, wj) in enumerate(blocks):
                 ent = input_entries(c, g, wname, wj)

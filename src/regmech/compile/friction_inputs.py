@@ -21,6 +21,7 @@ import sympy
 from ..component import numeric_params, signal_params
 from ..errors import ModelError
 from .kernels import _lambdify, _SymbolicSelf
+from .reads import state_column
 
 
 class StateInput:
@@ -135,6 +136,11 @@ def build_inputs(c, devices, own_states) -> list:
         for spec in specs:
             if spec[0] == "state":
                 k = own_states[j][spec[1]]
+                ins.append(StateInput(c.iz[k], c.state_datum[k]))
+            elif spec[0] == "command" and not hasattr(type(spec[1]), "command_law") \
+                    and state_column(c, spec[1], spec[2]) is not None:
+                # a block's output (``component.StateRead``): an unknown of the DAE itself
+                k = state_column(c, spec[1], spec[2])
                 ins.append(StateInput(c.iz[k], c.state_datum[k]))
             elif spec[0] == "command":
                 ins.append(CommandInput(c, spec[1], spec[2], f"{type(dev).__name__} '{dev.name}'"))

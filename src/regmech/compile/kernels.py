@@ -72,7 +72,7 @@ class Template:
     params: list[str]           # numeric parameters used
     inputs: list[str]           # signal parameters used
     fn: object
-    jac_entries: list[tuple]    # (output, wrt) with output in ('tau', i) / ('dz', i), wrt in ('e', j) / ('de', j) / ('z', j)
+    jac_entries: list[tuple]    # (output, wrt) with output in ('tau', i) / ('dz', i), wrt in ('e', j) / ('de', j) / ('z', j) / ('r', j)
     n_out: int
     res_fn: object = None
     jac_fn: object = None
@@ -92,6 +92,8 @@ class Template:
     exprs: dict = None
     #: their Python-float versions, built on first use (``scalar``); None: not printable that way
     scalar_fns: dict = None
+    #: signal parameters read from the unknowns (``component.StateRead``): arguments ``r`` after ``z``
+    reads: tuple = ()
 
     def scalar(self, fn):
         """The Python-float version of ``res_fn``, ``jac_fn`` or ``surf_fn`` (``math`` functions and ``if``/``else``
@@ -172,9 +174,16 @@ def _law_expr(where: str, what: str, x, known: set):
     return expr
 
 
+def read_params(dev: Device) -> tuple:
+    """The signal parameters of ``dev`` whose value is read from the unknowns (``component.StateRead``)."""
+    from ..component import StateRead
+    return tuple(p for p in signal_params(type(dev)) if isinstance(dev._values.get(p), StateRead))
+
+
 def template_for(dev: Device) -> Template:
     cls = type(dev)
-    key = (cls, dev.device_kind(), len(dev.rows()))
+    reads = read_params(dev)
+    key = (cls, dev.device_kind(), len(dev.rows())) + ((reads,) if reads else ())
     tpl = _TEMPLATES.get(key)
     if tpl is not None:
         return tpl
@@ -185,8 +194,9 @@ def template_for(dev: Device) -> Template:
     z = [sympy.Symbol(f"_z_{s}", real=True) for s in states]
     t = sympy.Symbol("_t", real=True)
     pnames = numeric_params(cls)
-    inames = signal_params(cls)
-    syms = {p: sympy.Symbol(p, real=True) for p in pnames + inames}
+    inames = [p for p in signal_params(cls) if p not in reads]
+    syms = {p: sympy.Symbol(p, real=True) for p in pnames + inames + list(reads)}
+    r = [syms[p] for p in reads]
     syms.update({s: zs for s, zs in zip(states, z)})
     syms["time"] = t
     proxy = _SymbolicSelf(cls, syms)
@@ -213,7 +223,7 @@ def template_for(dev: Device) -> Template:
         raise ModelError(f"{cls.__name__}: derivatives() returned {len(dz)} expressions for states {states}")
     jac_entries, jac_exprs = [], []
     wrt = [("e", j, s) for j, s in enumerate(e)] + [("de", j, s) for j, s in enumerate(de)] + \
-          [("z", j, s) for j, s in enumerate(z)]
+          [("z", j, s) for j, s in enumerate(z)] + [("r", j, s) for j, s in enumerate(r)]
     outs = [("tau", i, x) for i, x in enumerate(taus)] + [("dz", i, x) for i, x in enumerate(dz)]
     for oname, oi, ox in outs:
         for wname, wj, ws in wrt:
@@ -229,14 +239,18 @@ def template_for(dev: Device) -> Template:
     inputs = [p for p in inames if syms[p] in used]
     param_syms = [syms[p] for p in params]
     input_syms = [syms[p] for p in inputs]
-    args = list(e) + list(de) + z + param_syms + input_syms + [t]
+    args = list(e) + list(de) + z + r + param_syms + input_syms + [t]
     fn = _lambdify(args, taus + dz + jac_exprs + [pot])
     # affine: the Jacobian is a function of the parameters alone (no e, de, z, t or inputs)
-    variable = set(e) | set(de) | set(z) | {t} | set(input_syms)
+    variable = set(e) | set(de) | set(z) | set(r) | {t} | set(input_syms)
     affine = not any(x.free_symbols & variable for x in jac_exprs)
+    if affine:
+        # a law that jumps (a Piecewise of the variables with constant pieces: a comparator) has a zero Jacobian
+        # almost everywhere, yet is no affine function
+        affine = not any(pw.free_symbols & variable for x in taus + dz for pw in x.atoms(sympy.Piecewise))
     offset_fn, offset_varies, offset_uses_time, offset_coef_fn = None, False, False, None
     if affine:
-        zero = {s: 0 for s in list(e) + list(de) + z}
+        zero = {s: 0 for s in list(e) + list(de) + z + r}
         offsets = [x.subs(zero) for x in taus + dz]
         offset_varies = any(x.free_symbols & ({t} | set(input_syms)) for x in offsets)
         offset_uses_time = any(t in x.free_symbols for x in offsets)
@@ -250,7 +264,8 @@ def template_for(dev: Device) -> Template:
                    affine=affine, offset_fn=offset_fn, offset_varies=offset_varies,
                    offset_uses_time=offset_uses_time, offset_coef_fn=offset_coef_fn,
                    surf_fn=_lambdify(args, surf) if surf else None, surf_codes=surf_codes,
-                   exprs={"res": (args, taus + dz), "jac": (args, jac_exprs), **({"surf": (args, surf)} if surf else {})})
+                   exprs={"res": (args, taus + dz), "jac": (args, jac_exprs), **({"surf": (args, surf)} if surf else {})},
+                   reads=reads)
     _TEMPLATES[key] = tpl
     return tpl
 
@@ -258,7 +273,7 @@ def template_for(dev: Device) -> Template:
 def _signature(tpl: Template) -> tuple:
     """What the compiled layout relies on in a template (checked when it is found again after unpickling)."""
     return (tpl.k, tuple(tpl.states), tuple(tpl.params), tuple(tpl.inputs), tuple(tpl.jac_entries), tpl.affine,
-            tpl.offset_varies, tpl.offset_uses_time, tpl.surf_codes)
+            tpl.offset_varies, tpl.offset_uses_time, tpl.surf_codes, tpl.reads)
 
 
 class SignalBank:
@@ -328,6 +343,8 @@ class KernelGroup:
         self.devices = devices
         self.row_index = row_index
         self.state_index = state_index
+        #: ``read_index[i, j]``: global state index that read input j of instance i takes (``compile.reads``)
+        self.read_index = np.zeros((len(devices), len(tpl.reads)), np.int64)
         self.n = len(devices)
         pvals = []
         for p in tpl.params:
@@ -380,6 +397,7 @@ class KernelGroup:
         args = [e[self.row_index[:, r]] for r in range(tpl.k)] + \
                [de[self.row_index[:, r]] for r in range(tpl.k)] + \
                [z[self.state_index[:, s]] for s in range(len(tpl.states))] + \
+               [z[self.read_index[:, j]] for j in range(len(tpl.reads))] + \
                self.param_values + self.inputs_at(t, left) + [t]
         out = tpl.fn(*args)
         return [np.broadcast_to(np.asarray(o, dtype=float), (self.n,)) for o in out]
@@ -415,7 +433,8 @@ class KernelGroup:
         tpl = self.tpl
         args = [e[self.row_index[:, r]] for r in range(tpl.k)] + \
                [de[self.row_index[:, r]] for r in range(tpl.k)] + \
-               [z[self.state_index[:, s]] for s in range(len(tpl.states))]
+               [z[self.state_index[:, s]] for s in range(len(tpl.states))] + \
+               [z[self.read_index[:, j]] for j in range(len(tpl.reads))]
         res = np.empty((len(tpl.surf_codes), self.n))
         for i, o in enumerate(self.call(tpl.surf_fn, args, t, left)):
             res[i] = o          # numpy broadcasts a constant surface
@@ -436,7 +455,7 @@ class KernelGroup:
     def constant_weights(self) -> np.ndarray:
         """Affine classes: the (constant) Jacobian entries, shape (n_jac, n)."""
         k, ns = self.tpl.k, len(self.tpl.states)
-        zeros = [np.zeros(self.n)] * (2 * k + ns)
+        zeros = [np.zeros(self.n)] * (2 * k + ns + len(self.tpl.reads))
         out = self.call(self.tpl.jac_fn, zeros, 0.0)
         res = np.empty((len(out), self.n))
         for i, o in enumerate(out):
@@ -449,6 +468,7 @@ class KernelGroup:
         args = [E[:, self.row_index[:, r]] for r in range(tpl.k)] + \
                [DE[:, self.row_index[:, r]] for r in range(tpl.k)] + \
                [Z[:, self.state_index[:, s]] for s in range(len(tpl.states))] + \
+               [Z[:, self.read_index[:, j]] for j in range(len(tpl.reads))] + \
                [p[None, :] for p in self.param_values] + \
                [np.array([[s.value(t, lf) for s in sigs] for t, lf in zip(T, left)]).reshape(len(T), self.n)
                 for sigs in self.signals] + [T[:, None]]

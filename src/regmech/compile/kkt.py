@@ -47,7 +47,7 @@ def _template(c):
     if K0 is None:
         n, m, mpv = c.n, c.m, c.mp + c.mv
         K0 = np.zeros((n + m, n + m))
-        K0[np.arange(n), np.arange(n)] = c.mass
+        K0[np.arange(n), np.arange(n)] = getattr(c, "kkt_mass", c.mass)
         K0[:n, n:] = c.GallT.toarray()
         K0[n:n + mpv, :n] = c.Gpv.toarray()
         c._kkt_template = K0
@@ -77,7 +77,7 @@ def _dense(c, modes, relations, pivot_tol):
 
 def _sparse(c, modes, relations, pivot_tol):
     m = c.m
-    blocks = [[sp.diags(c.mass), c.GallT], [c.Gpv, sp.csr_matrix((c.mp + c.mv, m))]]
+    blocks = [[sp.diags(getattr(c, "kkt_mass", c.mass)), c.GallT], [c.Gpv, sp.csr_matrix((c.mp + c.mv, m))]]
     if c.mf:
         fr = c.friction
         stuck = np.asarray(modes) == 0

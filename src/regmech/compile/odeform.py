@@ -326,5 +326,7 @@ def ode_form(c) -> OdeForm:
     """The ``OdeForm`` of a compiled system, built once (it reads only constant matrices of ``c``)."""
     form = c.__dict__.get("_ode_form")
     if form is None:
+        from .reads import refuse_ode_form
+        refuse_ode_form(c)
         form = c._ode_form = OdeForm(c)
     return form

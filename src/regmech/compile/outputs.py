@@ -183,6 +183,7 @@ class Trajectory:
         rows = [("c", int(g.row_index[i, r])) for r in range(tpl.k)]
         args = [col(self._row_e(w, 0)) for w in rows] + [col(self._row_e(w, 1)) for w in rows] + \
                [col(self.Y[:, c.iz[int(g.state_index[i, s])]]) for s in range(len(tpl.states))] + \
+               [col(self.Y[:, c.iz[int(g.read_index[i, j])]]) for j in range(len(tpl.reads))] + \
                [p[None, i:i + 1] for p in g.param_values] + \
                [np.array([sigs[i].value(t, lf) for t, lf in zip(self.t, self.left)], float).reshape(n_t, 1)
                 for sigs in g.signals] + [self.t[:, None]]
@@ -288,6 +289,7 @@ class Trajectory:
         first request, from the rows, forces and states of this one instance (``taus``, ``dess``: the recipes of
         its rows' forces and relative speeds, with what a friction row's mode pins at zero)."""
         from ..errors import ModelError, RegmechError
+        from .reads import recorded_reads
         cache: dict = {}
 
         def compute():
@@ -299,7 +301,8 @@ class Trajectory:
                      for name, j in maps["states"].get(dev.name, ())}
                 who = f"{type(dev).__name__} '{dev.name}'"
                 try:
-                    out = dev.derived(self.t, self.left, e, de, tau, z)
+                    with recorded_reads(self.c, dev, self.t, self.left, self.Y):
+                        out = dev.derived(self.t, self.left, e, de, tau, z)
                 except RegmechError:
                     raise
                 except Exception as exc:      # a user's derived(): said as a regmech error naming the device

@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 from ..errors import RegularityWarning, SimulationError, StructureError
 from ..structure.system import (START_RTOL, MechanicalStructure, build_structure, constraint_start_conflict,
                                 gc_paused)
-from . import kkt
+from . import kkt, massless, reads
 from .assembly import PatternBuilder, kernel_terms
 from .evaluation import EvaluationPlan, JacobianPlan
 from .friction_rows import FrictionRows
@@ -72,6 +72,7 @@ class CompiledSystem:
         self.Kv = np.setdiff1d(np.arange(n), self.Dv)      # coordinates with differential v
         self._t_right = np.inf
         self._build_kernels()
+        reads.attach(self)
         self._build_layout()
         self._build_references()
         self._build_jacobian()
@@ -85,6 +86,7 @@ class CompiledSystem:
             self.nw_friction = self.friction.add_pattern(self._pb, self.nw_kernel)
             self.jac = self._pb.build()
         self.modes0 = self.friction.initial_modes() if self.friction else np.zeros(0, int)
+        massless.check(self)
 
     # -------------------------------------------------------------- pickling
     #: caches that hold SuperLU factorisations (not picklable), plans derived from them, maps keyed by
@@ -184,10 +186,13 @@ class CompiledSystem:
         self.r_acc = self.ilam[: self.mp + self.mv]
         self.r_fric = self.ilam[self.mp + self.mv:]
         self.r_z = self.iz
-        alg = np.concatenate([self.ix[self.Dx], self.iv[self.Dv], self.iad, self.ilam])
-        self.algebraic = np.sort(alg).astype(int)
         self.is_dummy_v = np.zeros(n, bool)
         self.is_dummy_v[self.Dv] = True
+        massless.attach(self)           # massless coordinates of first-order nodes: their speeds are algebraic
+        self.dae_only = self.dae_only or bool(len(self.massless))
+        alg = np.concatenate([self.ix[self.Dx], self.iv[self.Dv], self.iad, self.ilam,
+                              self.iz[reads.algebraic_rows(self)], self.iv[self.massless]])
+        self.algebraic = np.sort(alg).astype(int)
         self.pos_in_Dv = np.full(n, -1)
         self.pos_in_Dv[self.Dv] = np.arange(len(self.Dv))
 
@@ -228,6 +233,7 @@ class CompiledSystem:
         ones = np.ones
         Gp, Gpv, GT = self.Gp.tocoo(), self.Gpv.tocoo(), self.Gall.tocoo()
         dmask = self.is_dummy_v[Gpv.col]
+        zalg = reads.algebraic_rows(self)
         # (residual rows, y columns, coefficients, coefficient of y' rather than y)
         terms = [
             (self.r_kin, self.ix[self.Kx], ones(len(self.Kx)), True),              # x' - v
@@ -239,7 +245,7 @@ class CompiledSystem:
             (self.r_mot[GT.col], self.ilam[GT.row], GT.data, False),               # G^T lam
             (self.r_acc[Gpv.row[~dmask]], self.iv[Gpv.col[~dmask]], Gpv.data[~dmask], True),   # G_pv a
             (self.r_acc[Gpv.row[dmask]], self.iad[self.pos_in_Dv[Gpv.col[dmask]]], Gpv.data[dmask], False),
-            (self.r_z, self.iz, ones(self.nz), True),                              # z'
+            (self.r_z[~zalg], self.iz[~zalg], ones(self.nz - int(zalg.sum())), True),  # z' (differential states)
         ]
         pb = PatternBuilder(self.N)
         for rows, cols, vals, on_yp in terms:
@@ -395,6 +401,8 @@ class CompiledSystem:
         if not len(rhs):
             return np.zeros(0), np.zeros(0), dz
         sol = self._kkt(modes, relations).solve(rhs)
+        if len(self.massless):
+            sol[self.massless] = 0.0        # no acceleration of their own (``compile.massless``)
         if self.mf and self.friction.state_rows:
             # friction devices' own states read their friction force: known after the solve
             zi, rates = self.friction.state_rates(t, v, sol[self.n:], q, modes)
@@ -563,7 +571,15 @@ class CompiledSystem:
         predictor uses them). ``known``: ``accelerations(t, x, v, z, modes)`` when the caller has it. ``start``:
         the values are a run's start (``initial_y``), which a non-finite value's message says.
         """
+        if len(self.massless):
+            v = massless.speeds(self, t, x, v, z)
+            known = None
+        if self.n_alg or self.sampled or self.branches or self.latches:
+            z = reads.settle(self, t, x, v, np.array(z, float))
+            known = None
         a, lam, dz = self.accelerations(t, x, v, z, modes) if known is None else known
+        if self.n_alg:
+            dz = np.where(self.z_algebraic, 0.0, dz)       # algebraic states: no rate in the residual
         y = np.zeros(self.N)
         yp = np.zeros(self.N)
         # (the index sets as slices: views, no gathers; the mode logic assembles a restart at every event)

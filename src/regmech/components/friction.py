@@ -41,7 +41,7 @@ import numpy as np
 from ..component import Device, Param, read_only
 from ..modes import BACKWARD, FORWARD, FREE, HELD, STUCK  # noqa: F401  (the mode codes, as before)
 from ..ports import ROTATIONAL, TRANSLATIONAL
-from ..component import Command
+from ..component import Command, StateRead
 from .heat import HEAT_UNITS, THERMAL_UNITS, DissipatesPower, ThermalMass
 
 
@@ -72,7 +72,7 @@ class FrictionDevice(DissipatesPower, Device):
         if self._values.get("thermal") is not None:
             out.append(("state", "T"))
         cmd = self._values.get(self._force_param) if self._force_param else None
-        if isinstance(cmd, Command):
+        if isinstance(cmd, (Command, StateRead)):
             out.append(("command", cmd.device, cmd.key))
         return out
 

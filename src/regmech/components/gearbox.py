@@ -45,7 +45,7 @@ import math
 import numpy as np
 
 from .._numbers import as_real
-from ..component import Param, Subsystem
+from ..component import Param, StateRead, Subsystem
 from ..errors import ParameterError
 from ..signals import Signal, Table
 from .friction import Clutch, LossyGear
@@ -183,7 +183,9 @@ class Gearbox(Subsystem):
     """
 
     ratios = Param(check="any", unit="1", doc="gear ratios w_in/w_out, one per gear (negative: reverse)")
-    gear = Param(1, check="any", unit="1", doc="gear selection: int, list of (t, gear) or a piecewise-constant signal")
+    gear = Param(1, check="any", unit="1", doc="gear selection: int, list of (t, gear), a piecewise-constant signal, "
+                                                 "or a block's output (blocks.ShiftSchedule: the gear from the run)")
+    gear0 = Param(1, check="any", unit="1", doc="start gear when 'gear' is a block's output (its element starts applied)")
     capacity = Param(check="any", unit="N m", doc="kinetic torque of each shift element fully applied (number or list)")
     efficiency = Param(None, check="any", optional=True, unit="1", doc="mesh efficiency per gear in (0, 1] (None: ideal)")
     peak = Param(1.2, check="positive", unit="1", doc="static over kinetic torque of the shift elements (>= 1)")
@@ -211,6 +213,11 @@ class Gearbox(Subsystem):
         if self.peak < 1.0:
             raise ParameterError(f"{_where(self)}: parameter 'peak' must be >= 1 (static over kinetic torque), "
                                  f"got {self.peak}")
+        if isinstance(self._values["gear"], StateRead):
+            # a gear selected in the run (a ``blocks.ShiftSchedule``'s output): each element's force follows it
+            # through a ``blocks.ShiftElement`` (parts ``select<k>``), no time schedule
+            self._schedule, self._tables = None, None
+            return
         self._schedule = gear_schedule(self, self._values["gear"], n)
         delay = self.release_time if self.shift_delay is None else self.shift_delay
         self._tables = engagement_tables(self, self._schedule, n, self.release_time, delay, self.engage_time)
@@ -220,9 +227,9 @@ class Gearbox(Subsystem):
         return len(self._ratios)
 
     @property
-    def schedule(self) -> list[tuple[float, int]]:
-        """The gear selection as (t, gear) pairs (gear 0 is neutral)."""
-        return list(self._schedule)
+    def schedule(self) -> list[tuple[float, int]] | None:
+        """The gear selection as (t, gear) pairs (gear 0 is neutral); None for a gear selected in the run."""
+        return None if self._schedule is None else list(self._schedule)
 
     def engagement(self, k: int) -> Table:
         """The ``f_normalized`` signal of shift element k (1-based)."""
@@ -230,6 +237,9 @@ class Gearbox(Subsystem):
 
     def gear_at(self, t: float) -> int:
         """The gear selected at time t [s] (the command; the element may still be slipping)."""
+        if self._schedule is None:
+            raise ParameterError(f"{_where(self)}: its gear is {self._values['gear']!r}, selected in the run; read it "
+                                 f"from a result (res['{self._values['gear']!r}'])")
         g = self._schedule[0][1]
         for ts, gk in self._schedule:
             if t >= ts:
@@ -247,8 +257,16 @@ class Gearbox(Subsystem):
                 eta = self._eta[k]
                 mesh = self.part(LossyGear(f"gear{i}", ratio=self._ratios[k], loss_table=[[0.0, eta, eta, 0.0, 0.0]]))
             idler = self.part(Inertia(f"idler{i}", J=self._J_gear[k]))
+            if self._tables is None:
+                from ..blocks.continuous import ShiftElement
+                gear = self._values["gear"]
+                sel = self.part(ShiftElement(f"select{i}", gear=gear, k=float(i), engage_time=self.engage_time,
+                                             release_time=self.release_time, f0=1.0 if i == self.gear0 else 0.0))
+                force = sel.y
+            else:
+                force = self._tables[k]
             elem = self.part(Clutch(f"shift{i}", mu=1.0, cgeo=1.0, peak=self.peak, fn_max=self._capacity[k],
-                                    f_normalized=self._tables[k]))
+                                    f_normalized=force))
             self.link(inp.flange_b, mesh.flange_a)
             self.link(mesh.flange_b, idler.flange_a)
             self.link(idler.flange_b, elem.flange_a)

@@ -40,11 +40,16 @@ class SurfaceSet:
             devices.setdefault(name, []).append((k, code))
         self._devices = devices
         self._kinds = getattr(c, "surface_kinds", {})
+        #: surfaces of latch states (``compile.reads``): after a crossing the latch moves and its surface jumps
+        #: back below zero, so the next segment takes their side from their sign, not from the flip
+        self._latch = np.zeros(self.n_events, bool)
+        self._latch[np.asarray(getattr(c, "latch_surfaces", ()), int)] = True
 
     def reset(self):
         """Forget a crossing of a previous run (a run starts from the surfaces' signs alone)."""
         self._flipped = None
         self._running = False
+        self.c.surface_sides = None      # branch states (``compile.reads``) take the signs themselves
 
     def begin(self, t, y) -> list[tuple[str, int, int, str]]:
         """Set the sides at the start of a segment from the surfaces' signs at ``(t, y)``; the surfaces
@@ -59,11 +64,19 @@ class SurfaceSet:
         sides = np.where(g < 0.0, -1.0, 1.0)
         if self._flipped is not None:
             idx, kept = self._flipped
-            sides[idx] = kept
+            on = ~self._latch[idx]
+            sides[idx[on]] = kept[on]
             self._flipped = None
-        changes = self._changes(self.sides, sides) if self._running else []
+        if self._latch.any():
+            # a latch's surface back below zero after its crossing is no change of its own (``cross`` reported it)
+            sides_cmp = sides.copy()
+            sides_cmp[self._latch] = self.sides[self._latch]
+        else:
+            sides_cmp = sides
+        changes = self._changes(self.sides, sides_cmp) if self._running else []
         self._running = True
         self.sides = sides
+        self.c.surface_sides = sides
         return changes
 
     def event_values(self, t, y):
@@ -88,6 +101,7 @@ class SurfaceSet:
         sides[idx] = -sides[idx]
         changes = self._changes(self.sides, sides)
         self.sides = sides
+        self.c.surface_sides = sides     # the restart's branch states read the new sides (``compile.reads``)
         self._flipped = (idx, sides[idx])
         return changes
 

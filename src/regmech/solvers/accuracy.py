@@ -333,7 +333,7 @@ def net_changes(events) -> list[tuple[float, str, int, int, list[int]]]:
     out: list = []
     last: dict = {}
     for i, ev in enumerate(events):
-        if ev.kind in ("contact", "limit", "flow"):
+        if ev.kind in ("contact", "limit", "flow", "switch", "latch"):
             # contacts of piecewise laws (and controllers' limits) are compared through the signals they shape: a
             # grazing touch seen by one run and not the other changes the motion by less than the tolerances
             continue

@@ -624,6 +624,11 @@ def simulate_auto(model, t_start, t_end, dt_out, accuracy, options):
     t0 = time.perf_counter()
     tr = traits(model, t_start, t_end, dt_out)
     candidates = choose(tr, accuracy)
+    c = model.compile()
+    if getattr(c, "dae_only", False):
+        # algebraic, sampled or branch device states (causal blocks): only the DAE solver holds them, so its own
+        # refusal is the answer (the ODE-form fallbacks would refuse the model itself)
+        candidates = [cand for cand in candidates if cand[0] == "ida"]
     analysis = time.perf_counter() - t0
     refused = []
     for i, (solver, reason) in enumerate(candidates):

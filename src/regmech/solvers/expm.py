@@ -236,7 +236,7 @@ def _nonlinear_components(c, t_start: float, t_end: float, samples: int) -> list
     times = np.concatenate([[t_start, t_end], rng.uniform(t_start, t_end, samples)])
     for g in c.groups:
         tpl = g.tpl
-        if tpl.states:
+        if tpl.states or tpl.reads:      # internal states, or parameters read from the unknowns (causal blocks)
             bad += [f"{type(d).__name__} '{d.name}'" for d in g.devices]
             continue
         if tpl.affine or not tpl.jac_entries:

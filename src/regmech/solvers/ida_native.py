@@ -242,6 +242,9 @@ def eligible(c, linsolver, deadline=None):
 def _eligible(c, linsolver):
     """``eligible`` computed, but for a wrapped residual."""
     plan = c._plan
+    if getattr(c, "dae_only", False) or getattr(c, "has_reads", False):
+        return ("causal blocks or massless points (parameters read from the unknowns; algebraic, sampled or branch "
+                "states; speeds of massless points)")
     if getattr(c, "n_surf", 0):
         nonlinear = {id(g) for g in plan.nonlinear}
         for g, _, _ in c.surface_groups:

@@ -1,7 +1,12 @@
 """The rules of the regular mechanical system (REFERENCES.md [003]), as checks.
 
-1. Devices (massless) join masses or the ground, never each other: a node
-   where devices meet without a mass is an error naming the devices.
+1. Devices (massless) join masses or the ground. A node where devices meet
+   without a mass is accepted where its motion is determinate (Modelica's
+   rule): a coordinate that a rigid row makes dependent, or a node of
+   compliant devices whose force balance gives its speed (a spring and a
+   damper in series: the node's position becomes a first-order state); the
+   reduction is listed in the report's ``notes``. Otherwise it is an error
+   naming the devices.
    The three wrong schematizations of the paper get their own explanation:
    a massless spring under a load, a friction device on the massless end of
    an elastic shaft, dampers meeting at a massless point.
@@ -69,6 +74,33 @@ def _massless_node_message(node: Node) -> str:
             f"or merge the devices into one.")
 
 
+def _determinate_note(node: Node) -> str | None:
+    """The reduction of a massless node that Modelica accepts, or None when the rules refuse it.
+
+    * A node with a rigid row (a gear, a rigid shaft, a rolling wheel): its coordinate becomes a dependent
+      (dummy) coordinate of that constraint, and its force balance gives the constraint force.
+    * A node of compliant devices only (springs, dampers, sources; a Maxwell element): its position becomes a
+      first-order state, its speed an algebraic unknown of its force balance. Whether that balance determines
+      the speed (a damper at the node) is decided by the compiler (``compile.massless``), which refuses the
+      node with the message of ``_massless_node_message`` otherwise.
+
+    A friction device on a massless node without a rigid row stays refused (Position 3: its closing needs an
+    inertia on each side, which a rigid row reflects onto the node)."""
+    devs = node.devices()
+    kinds = [d.device_kind() for d in devs]
+    rigid = [d for d in devs if "rigid" in d.row_kinds() or d.device_kind() in ("rigid", "position")]
+    if rigid:
+        # a clutch there sees the inertia the rigid row reflects onto the point (Position 3 holds through it)
+        return (f"massless point {node.label()}: its motion follows from the constraint of {_names(rigid)} "
+                f"(a dependent coordinate; its force balance gives the constraint force)")
+    if "friction" in kinds:
+        return None
+    if all(k == "compliant" for k in kinds):
+        return (f"massless point {node.label()}: first-order node between {_names(devs)} (its position a state, "
+                f"its speed from the balance of their forces)")
+    return None
+
+
 def check_model(model) -> RegularityReport:
     """Raise ``RegularityError``/``ModelError`` for every violation found (all listed)."""
     if not model.components:
@@ -77,6 +109,7 @@ def check_model(model) -> RegularityReport:
     problems: list[str] = []
     dangling: list[str] = []
     regular: list[str] = []
+    notes: list[str] = []
     for node in nodes:
         if len(node.driven_by) > 1:
             problems.append(f"the point {node.label()} is driven by several motion sources "
@@ -93,7 +126,11 @@ def check_model(model) -> RegularityReport:
                                 f"connected, which leaves the model under-determined; connect it to a mass "
                                 f"(Inertia/Mass) or to a Fixed")
             continue
-        regular.append(_massless_node_message(node))
+        note = _determinate_note(node)
+        if note is None:
+            regular.append(_massless_node_message(node))
+        else:
+            notes.append(note)
     if problems or dangling:
         raise ModelError("; ".join(problems + dangling + regular))
     if regular:
@@ -105,4 +142,5 @@ def check_model(model) -> RegularityReport:
         grounded_nodes=sum(1 for n in nodes if n.grounded),
         driven_nodes=sum(1 for n in nodes if n.driven_by),
         devices=len(devices),
+        notes=notes,
     )

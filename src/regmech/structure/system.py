@@ -604,6 +604,9 @@ def _build_structure(model) -> MechanicalStructure:
     st.dummy_v = np.sort(cols).astype(int)
     driven = set(st.dummy_v.tolist())
     for k, node in enumerate(coord_node):
-        if mass[k] == 0.0 and k not in driven:
+        if mass[k] == 0.0 and k not in driven and any(k in r.cols for r in st.friction) \
+                and not any(k in r.cols for r in st.position + st.speed):
+            # a friction row on a massless coordinate that no rigid row joins to a mass: its closing cannot be
+            # computed (Position 3); a rigid row reflects a mass onto it (the acceleration solve sees that mass)
             raise StructureError(f"the point {node.label()} has no mass and is not fully driven; insert a mass there")
     return st
