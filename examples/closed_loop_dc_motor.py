@@ -20,6 +20,7 @@ Output: ``out/closed_loop_dc_motor.png`` (speed, voltage, current) and a table o
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
@@ -97,5 +98,6 @@ def main(out: Path) -> None:
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("out"))
+    parser.add_argument("--out", type=Path, default=Path(os.environ.get("REGMECH_EXAMPLES_OUT", "out")),
+                        help="folder for the figure")
     main(parser.parse_args().out)
