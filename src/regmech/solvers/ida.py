@@ -563,8 +563,9 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 y, yp = _on_constraints(c, t_ev, y_ev, modes)
                 # one row: the state and (the law being continuous) the accelerations are the same on both
                 # sides; the consistent one, not IDA's interpolant, whose accelerations come from the old
-                # branch's polynomial (the power balance at the row was off by 4e-4 of its scale)
-                rec.add(t_ev, y, yp, modes)
+                # branch's polynomial (the power balance at the row was off by 4e-4 of its scale). A second
+                # surface crossed a round-off after the last event takes that event's row
+                rec.add_replacing(t_ev, y, yp, modes, 1e-12 * max(1.0, abs(t_ev)))
             t = t_ev
             if len(events) > max_events:
                 raise SimulationError(f"more than {max_events} mode changes and contacts in model '{model.name}'; "
@@ -916,6 +917,10 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     # after settling; rows beyond ``tspan`` (none in IDA's normal mode) would be kept
     end = n_rows - 1 if sol.status == 2 else n_rows
     wanted = np.concatenate([record, np.ones(max(0, end - len(record)), bool)])[1:max(end, 1)]
+    if sol.status == 2 and end > 1:
+        # a grid point within round-off before the event (root found 1e-15 s past it): the event's row stands
+        # for it, as where the root lands on the grid point itself
+        wanted = wanted & (np.abs(np.asarray(sol.t)[1:end] - sol.t[-1]) > tol)
     # all rows wanted (every segment but a two-point one): views, no copy of the output rows
     keep = slice(1, max(end, 1)) if wanted.all() else np.arange(1, max(end, 1))[wanted]
     T = np.asarray(sol.t)[keep]
