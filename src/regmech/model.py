@@ -187,8 +187,8 @@ class Model:
     def check(self, warn: bool = True):
         """Regularity check: raises ``RegularityError`` / ``ModelError`` naming every violation, warns
         (``RegularityWarning``) about a stretched spectrum; returns a short ``report.ModelReport`` (its
-        text: OK, components by family, states, constraints, friction devices, link frequencies; its
-        data as attributes). ``warn=False``: the regularity rules only, no compilation (the
+        text: OK, components by family, states, constraints, friction devices, link frequencies, whether
+        ida's callbacks are compiled for it or which device keeps them in Python; its data as attributes). ``warn=False``: the regularity rules only, no compilation (the
         ``RegularityReport``)."""
         from .structure.regularity import check_model
         regularity = check_model(self)
@@ -201,7 +201,10 @@ class Model:
             self.compile().warn_spectrum()
         for w in caught:             # shown as before, and kept in the report
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        return model_report(self, "check", regularity, [str(w.message) for w in caught])
+        report = model_report(self, "check", regularity, [str(w.message) for w in caught])
+        from .solvers.ida_native import solver_path
+        report.solver_path = solver_path(self.compile())
+        return report
 
     def summary(self):
         """What the model is made of, in a few lines (a ``report.ModelReport``): components by family,

@@ -69,6 +69,8 @@ class ModelReport:
     friction_devices: list[str]
     link_hz: tuple[float, float] | None
     regularity: object = field(default=None)
+    #: which path ida's callbacks take for this model: compiled (native) or Python, and why (``m.check()``)
+    solver_path: str | None = None
 
     def __getattr__(self, name):
         # the regularity report's fields (masses, nodes, grounded_nodes, ...) read through, as m.check()
@@ -125,6 +127,8 @@ class ModelReport:
             lines.append(f"  link frequencies (local estimates): {lo:.3g} .. {hi:.3g} Hz (spread {hi / lo:.3g})")
         else:
             lines.append("  link frequencies: none (no elastic link)")
+        if self.solver_path:
+            lines.append(f"  solver path: {self.solver_path}")
         lines += [f"  problem: {p}" for p in self.problems]
         return "\n".join(lines)
 

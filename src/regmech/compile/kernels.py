@@ -151,8 +151,36 @@ class _KernelPrinter(NumPyPrinter):
         return out
 
 
-def _lambdify(args, exprs):
-    return sympy.lambdify(args, exprs, modules="numpy", printer=_KernelPrinter, cse=True)
+def _lambdify(args, exprs, where: str = ""):
+    """numpy code of ``exprs`` in ``args``; a function it cannot print (``sympy.besselj``, ``LambertW``) is a
+    ``ModelError`` naming the device ``where``."""
+    try:
+        return sympy.lambdify(args, exprs, modules="numpy", printer=_KernelPrinter, cse=True)
+    except Exception as exc:        # noqa: BLE001 - sympy's printers raise several kinds; each is named
+        raise ModelError(
+            f"{where or 'a device'}: its law uses a function regmech cannot evaluate ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0]}); write it with arithmetic, sympy.sqrt/exp/log/sin/cos/tanh/atan/Abs/"
+            f"Min/Max/sign/Heaviside/floor and sympy.Piecewise") from exc
+
+
+#: functions constant between their jumps: a law using them jumps there, and its derivative is zero elsewhere
+_STEPWISE = (sympy.Piecewise, sympy.sign, sympy.Heaviside, sympy.floor, sympy.ceiling, sympy.frac)
+
+
+def _derivative(where: str, x, wrt):
+    """``d x / d wrt`` almost everywhere: the Dirac deltas of jumps (``sign``, ``Heaviside``) and the
+    derivatives of stepwise functions (``floor``) are zero between the jumps, where the solvers use it; any
+    other derivative sympy cannot form (a user's undefined function) is a ``ModelError`` naming the device."""
+    d = sympy.diff(x, wrt)
+    if not d.has(sympy.DiracDelta, sympy.Derivative):
+        return d
+    d = d.replace(sympy.DiracDelta, lambda *args: sympy.S.Zero)
+    d = d.replace(lambda a: isinstance(a, sympy.Derivative) and isinstance(a.expr, _STEPWISE), lambda a: sympy.S.Zero)
+    if d.has(sympy.Derivative):
+        raise ModelError(f"{where}: the derivative of its law with respect to its argument {wrt} cannot be formed "
+                         f"({d}); write the law with functions sympy differentiates (arithmetic, sqrt, exp, sin, "
+                         f"Piecewise, ...)")
+    return d
 
 
 def _law_expr(where: str, what: str, x, known: set):
@@ -227,7 +255,7 @@ def template_for(dev: Device) -> Template:
     outs = [("tau", i, x) for i, x in enumerate(taus)] + [("dz", i, x) for i, x in enumerate(dz)]
     for oname, oi, ox in outs:
         for wname, wj, ws in wrt:
-            d = sympy.diff(ox, ws)
+            d = _derivative(where, ox, ws)
             if d != 0:
                 jac_entries.append(((oname, oi), (wname, wj)))
                 jac_exprs.append(d)
@@ -240,21 +268,21 @@ def template_for(dev: Device) -> Template:
     param_syms = [syms[p] for p in params]
     input_syms = [syms[p] for p in inputs]
     args = list(e) + list(de) + z + r + param_syms + input_syms + [t]
-    fn = _lambdify(args, taus + dz + jac_exprs + [pot])
+    fn = _lambdify(args, taus + dz + jac_exprs + [pot], where)
     # affine: the Jacobian is a function of the parameters alone (no e, de, z, t or inputs)
     variable = set(e) | set(de) | set(z) | set(r) | {t} | set(input_syms)
     affine = not any(x.free_symbols & variable for x in jac_exprs)
     if affine:
         # a law that jumps (a Piecewise of the variables with constant pieces: a comparator) has a zero Jacobian
         # almost everywhere, yet is no affine function
-        affine = not any(pw.free_symbols & variable for x in taus + dz for pw in x.atoms(sympy.Piecewise))
+        affine = not any(pw.free_symbols & variable for x in taus + dz for pw in x.atoms(*_STEPWISE))
     offset_fn, offset_varies, offset_uses_time, offset_coef_fn = None, False, False, None
     if affine:
         zero = {s: 0 for s in list(e) + list(de) + z + r}
         offsets = [x.subs(zero) for x in taus + dz]
         offset_varies = any(x.free_symbols & ({t} | set(input_syms)) for x in offsets)
         offset_uses_time = any(t in x.free_symbols for x in offsets)
-        offset_fn = _lambdify(param_syms + input_syms + [t], offsets)
+        offset_fn = _lambdify(param_syms + input_syms + [t], offsets, where)
         if offset_varies and not offset_uses_time:
             coefs = [[sympy.diff(x, u) for u in input_syms] for x in offsets]
             if not any(cf.free_symbols & set(input_syms) for row in coefs for cf in row):

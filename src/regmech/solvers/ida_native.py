@@ -239,6 +239,19 @@ def eligible(c, linsolver, deadline=None):
     return None
 
 
+def solver_path(c) -> str:
+    """What ``m.check()`` says of the path ida's callbacks take for compiled system ``c``: compiled (every law,
+    signal and event function in compiled code) or Python, with the device or input and the reason."""
+    from .ida import choose_linsolver
+    try:
+        why = eligible(c, choose_linsolver(c)[0])
+    except Exception as exc:        # noqa: BLE001 - a report line, never a failure of the check
+        why = f"not judged ({type(exc).__name__}: {exc})"
+    if why is None:
+        return "ida with compiled callbacks (residual, Jacobian and events of every device in compiled code)"
+    return f"ida with Python callbacks: {why}"
+
+
 def _eligible(c, linsolver):
     """``eligible`` computed, but for a wrapped residual."""
     plan = c._plan
