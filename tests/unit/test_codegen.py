@@ -133,9 +133,20 @@ def test_a_user_subclass_runs_compiled_with_the_python_path_s_answer(law):
 
 
 def test_a_law_with_a_function_regmech_cannot_evaluate_is_named():
-    cls = _spring_class("BesselSpring", lambda self, r, rd: self.c * sympy.besselj(1, r))
-    with pytest.raises(rm.ModelError, match=r"BesselSpring 's'.*cannot evaluate.*besselj"):
+    cls = _spring_class("LogIntegralSpring", lambda self, r, rd: self.c * sympy.li(2 + r * r))
+    with pytest.raises(rm.ModelError, match=r"LogIntegralSpring 's'.*cannot evaluate.*li"):
         _oscillator(cls).simulate(0.1)
+
+
+def test_a_special_function_numba_lacks_keeps_its_class_on_the_python_path_named():
+    """scipy evaluates a Bessel function, the compiled kernels cannot: that class runs in Python, said once by a
+    warning and in the run's stats, with the answer of the Python path."""
+    cls = _spring_class("BesselSpring", lambda self, r, rd: self.c * sympy.besselj(1, r) + self.d * rd)
+    m = _oscillator(cls)
+    with pytest.warns(RuntimeWarning, match="BesselSpring: its law is not compiled"):
+        res = m.simulate(1.0, dt_out=1e-2, solver="ida", rtol=1e-8, native=True)
+    assert res.stats.extra["native"].startswith("not used: BesselSpring 's'")
+    assert np.all(np.isfinite(res["J.w"])) and np.ptp(res["J.phi"]) > 0.1
 
 
 def test_a_law_whose_derivative_sympy_cannot_form_is_named():

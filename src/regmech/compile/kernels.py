@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import sympy
-from sympy.printing.numpy import NumPyPrinter
+from sympy.printing.numpy import SciPyPrinter
 from sympy.printing.precedence import PRECEDENCE
 
 from ..component import Device, numeric_params, signal_params
@@ -111,14 +111,15 @@ class Template:
         if name not in self.scalar_fns:
             args, exprs = self.exprs[name]
             try:
-                self.scalar_fns[name] = sympy.lambdify(args, exprs, modules="math", cse=True)
+                # ``math`` by name too: the printer writes ``math.copysign`` for sign and ``math.floor`` for floor
+                self.scalar_fns[name] = sympy.lambdify(args, exprs, modules=[{"math": math}, "math"], cse=True)
             except Exception:       # noqa: BLE001 - a function math has no version of: the numpy kernel serves
                 self.scalar_fns[name] = None
         return self.scalar_fns[name]
 
 
-class _KernelPrinter(NumPyPrinter):
-    """numpy code with small integer powers of symbols written as products.
+class _KernelPrinter(SciPyPrinter):
+    """numpy code (scipy.special for the special functions: erf, gamma, Bessel) with small integer powers of symbols written as products.
 
     ``x**3`` on a float array goes through the general ``pow`` (about 50 ns
     per element with numpy 2); ``x*x*x`` costs about 1 ns. After common
@@ -155,7 +156,7 @@ def _lambdify(args, exprs, where: str = ""):
     """numpy code of ``exprs`` in ``args``; a function it cannot print (``sympy.besselj``, ``LambertW``) is a
     ``ModelError`` naming the device ``where``."""
     try:
-        return sympy.lambdify(args, exprs, modules="numpy", printer=_KernelPrinter, cse=True)
+        return sympy.lambdify(args, exprs, modules=["scipy", "numpy"], printer=_KernelPrinter, cse=True)
     except Exception as exc:        # noqa: BLE001 - sympy's printers raise several kinds; each is named
         raise ModelError(
             f"{where or 'a device'}: its law uses a function regmech cannot evaluate ({type(exc).__name__}: "
