@@ -118,7 +118,10 @@ def test_native_ida_locates_the_contacts_in_compiled_code_where_python_does(cls,
     assert len(a) == len(b) == 4
     assert [(x.component, x.new_mode) for x in a] == [(x.component, x.new_mode) for x in b]
     assert max(abs(x.t - y.t) for x, y in zip(a, b)) < 1e-7
-    np.testing.assert_allclose(native["J2.w"], usual["J2.w"], rtol=0, atol=1e-6)
+    # the output grid's rows (an event a round-off past a grid point adds its rows beside it on one path only)
+    grid = np.round(np.arange(0.0, 0.5 + 1e-9, 1e-2), 12)
+    on_grid = [np.searchsorted(np.round(r.t, 12), grid) for r in (native, usual)]
+    np.testing.assert_allclose(native["J2.w"][on_grid[0]], usual["J2.w"][on_grid[1]], rtol=0, atol=1e-6)
 
 
 def test_a_play_below_b_eps_is_a_plain_spring_without_contact_events():

@@ -205,12 +205,31 @@ def test_friction_laws_the_kernels_cannot_evaluate_run_the_usual_path(variant, r
     np.testing.assert_array_equal(res["J1.w"], plain["J1.w"])
 
 
-def test_a_subclass_with_its_own_law_and_one_way_clutches_are_not_native():
+def test_a_subclass_with_its_own_law_is_not_native():
     assert StickyClutch("s", fn_max=1.0).linear_law() is None
     assert Clutch("c", fn_max=2.0, mu=0.4, cgeo=0.5, peak=1.2).linear_law()[1:] == (2.0, 0.4 * 0.5, 1.2)
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-9])
+def test_one_way_clutch_runs_native_on_the_python_path_s_events(rtol):
+    """MSL OneWayClutch: the freewheel locks where w_rel reaches 0 and releases forward past its capacity
+    (engaged) or its small hold (disengaged), evaluated by the compiled event function: the same mode changes
+    at the same instants as on the Python path, the answers within the tolerance."""
+    from regmech.components import OneWayClutch
     from regmech.library import one_way_clutch
-    res = one_way_clutch().simulate(1.0, dt_out=1e-2, solver="ida", native=True)
-    assert "one-way" in res.stats.extra["native"]
+    law = OneWayClutch("o", fn_max=10.0, mu=0.3, cgeo=2.0, peak=1.0).one_way_law()
+    assert law[1:] == (10.0, 0.6, 1.0 + OneWayClutch.EPS0, OneWayClutch.EPS0 * 0.6 * 10.0)
+    m = one_way_clutch()
+    native = m.simulate(2.0, dt_out=2e-3, solver="ida", rtol=rtol, native=True)
+    usual = m.simulate(2.0, dt_out=2e-3, solver="ida", rtol=rtol, native=False)
+    assert native.stats.extra["native"] is True
+    assert [(e.component, e.old_mode, e.new_mode) for e in native.events] == \
+        [(e.component, e.old_mode, e.new_mode) for e in usual.events]
+    assert len(native.events) >= 6
+    assert max(abs(a.t - b.t) for a, b in zip(native.events, usual.events)) < 1e3 * rtol
+    np.testing.assert_allclose(native.t, usual.t, rtol=0, atol=1e3 * rtol)      # event rows: their instants
+    for name in ("inertiaIn.w", "inertiaOut.w", "oneWayClutch.tau"):
+        np.testing.assert_allclose(native[name], usual[name], rtol=0, atol=1e2 * rtol * np.ptp(usual[name]))
 
 
 @pytest.mark.parametrize("device", [

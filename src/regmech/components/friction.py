@@ -378,6 +378,21 @@ class OneWayClutch(Clutch):
     def capacity_function(self):
         return FrictionDevice.capacity_function(self)
 
+    #: the methods whose formulas ``one_way_law`` restates
+    _ONE_WAY_LAW = Clutch._LAW + ("capacities",)
+
+    def one_way_law(self):
+        """``linear_law`` of the one-way clutch (compiled solvers, ``solvers._native_friction``):
+        ``(signal, fn_scale, k, peak, free_capacity)``, ``peak`` at least ``1 + EPS0`` and
+        ``free_capacity = EPS0 k fn_max`` [N m] the freewheel's hold when disengaged (``capacities``);
+        None for a speed-dependent mu, inputs from the state, or a subclass that states another law."""
+        mu = self._constant_mu()
+        if mu is None or self.law_inputs() or not self._states_own_law(OneWayClutch, self._ONE_WAY_LAW):
+            return None
+        k = mu * float(self.cgeo)
+        return (self.f_normalized, float(self.fn_max), k, max(float(self.peak), 1.0 + self.EPS0),
+                self.EPS0 * k * float(self.fn_max))
+
 
 class Brake(Clutch):
     """Brake (MSL Brake): friction between ``flange`` and ``support`` (grounded when free);

@@ -13,8 +13,8 @@ limit, ``_past_deadline``):
 * for a model with friction devices (``residual_friction``, ``events``), a second pair, ``hi`` (int64:
   ``[mf, off_row, off_sptr, off_sidx, off_wptr, off_widx, off_lam_buf, off_lam_sol, off_sig_kind, off_mode,
   off_evkind, off_engaged, off_relief, length]``) and ``hf`` (float64: ``[off_scoef, off_wcoef, off_sig_par,
-  off_fn_scale, off_k, off_peak, off_relief_ms, off_relief_tol, length]``), written by
-  ``ida_native.FrictionTables``; the per-segment parts (mode, event kind, engagement, relief event of each
+  off_fn_scale, off_k, off_peak, off_relief_ms, off_relief_tol, off_free_capacity, length]``), written by
+  ``_native_friction.FrictionTables``; the per-segment parts (mode, event kind, engagement, relief event of each
   device) are rewritten at every segment start.
 
 The residual is ``F = L [y; y'; u(t); 1]`` (``compile.evaluation.EvaluationPlan`` of a model without
@@ -38,7 +38,7 @@ from ..compile._native_signals import signal_at as _signal_at                 # 
 #: edit this file, or numba's cache of this file's kernels keeps the old formulas)
 SIGNALS_SOURCE = "1aa0d2b3db6801a2"
 # a friction device's first event function in the segment's modes (``hybrid.events``)
-EV_SLIDING, EV_STUCK, EV_CONSTANT = 0, 1, 2
+EV_SLIDING, EV_STUCK, EV_CONSTANT, EV_STUCK_ONE_WAY, EV_FREE_ONE_WAY = 0, 1, 2, 3, 4
 # the mode codes of ``regmech.modes`` (STUCK 0, FORWARD 1, BACKWARD -1; FREE and HELD carry no torque)
 M_STUCK, M_FORWARD, M_BACKWARD = 0, 1, -1
 
@@ -310,8 +310,8 @@ def residual(t, yy, yp, rr, user_data):
 def _friction_tables(ud):
     hh = carray(_i64p(ud[2]), (14,))
     hi = carray(_i64p(ud[2]), (hh[13],))
-    fh = carray(_f64p(ud[3]), (9,))
-    hf = carray(_f64p(ud[3]), (int(fh[8]),))
+    fh = carray(_f64p(ud[3]), (10,))
+    hf = carray(_f64p(ud[3]), (int(fh[9]),))
     return hh, hi, fh, hf
 
 
@@ -369,6 +369,15 @@ def _friction_events(hh, hi, fh, hf, j, y, t, left):
     elif kind == EV_STUCK:
         tau0 = hf[int(fh[4]) + j] * fn if fn > 0.0 else 0.0
         v = hf[int(fh[5]) + j] * tau0 - abs(y[hi[hh[7] + j]])
+    elif kind == EV_STUCK_ONE_WAY:        # releases forward only; disengaged, its freewheel's small capacity
+        cap = hf[int(fh[5]) + j] * hf[int(fh[4]) + j] * fn if fn > 0.0 else hf[int(fh[8]) + j]
+        v = cap - y[hi[hh[7] + j]]
+    elif kind == EV_FREE_ONE_WAY:         # locks where w_rel reaches 0
+        v = 0.0
+        for q in range(hi[hh[4] + j], hi[hh[4] + j + 1]):
+            v += hf[int(fh[1]) + q] * y[hi[hh[5] + q]]
+        if v == 0.0:
+            v = 1e-300
     else:
         v = 1.0
     if hi[hh[11] + j]:

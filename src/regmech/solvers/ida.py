@@ -917,10 +917,6 @@ def _solve_segment(c, model, modes, opts, grid, t, t_stop, y, yp, stats, rec, re
     # after settling; rows beyond ``tspan`` (none in IDA's normal mode) would be kept
     end = n_rows - 1 if sol.status == 2 else n_rows
     wanted = np.concatenate([record, np.ones(max(0, end - len(record)), bool)])[1:max(end, 1)]
-    if sol.status == 2 and end > 1:
-        # a grid point within round-off before the event (root found 1e-15 s past it): the event's row stands
-        # for it, as where the root lands on the grid point itself
-        wanted = wanted & (np.abs(np.asarray(sol.t)[1:end] - sol.t[-1]) > tol)
     # all rows wanted (every segment but a two-point one): views, no copy of the output rows
     keep = slice(1, max(end, 1)) if wanted.all() else np.arange(1, max(end, 1))[wanted]
     T = np.asarray(sol.t)[keep]
