@@ -220,13 +220,6 @@ class Recorder:
         self.YP[self.k] = yp if self.yp_cols is None else np.asarray(yp)[self.yp_cols]
         self.commit(t, modes, left)
 
-    def add_replacing(self, t, y, yp, modes, tol):
-        """``add``, replacing the last row when it lies within ``tol`` before ``t`` (a second root found a
-        round-off later than the first, of a law continuous across both: one instant, one row)."""
-        if self.k and 0.0 <= t - self.T[self.k - 1] <= tol:
-            self.k -= 1
-        self.add(t, y, yp, modes)
-
     def add_rows(self, t, Y, YP, modes, left):
         """Several rows at once (``t``, ``left``: 1-D; ``Y``, ``YP``: one row each), one mode set for all."""
         n = len(t)

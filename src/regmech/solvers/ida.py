@@ -563,9 +563,8 @@ def _run_ida(model, t_start, t_end, dt_out, rtol, atol, linsolver, max_step, max
                 y, yp = _on_constraints(c, t_ev, y_ev, modes)
                 # one row: the state and (the law being continuous) the accelerations are the same on both
                 # sides; the consistent one, not IDA's interpolant, whose accelerations come from the old
-                # branch's polynomial (the power balance at the row was off by 4e-4 of its scale). A second
-                # surface crossed a round-off after the last event takes that event's row
-                rec.add_replacing(t_ev, y, yp, modes, 1e-12 * max(1.0, abs(t_ev)))
+                # branch's polynomial (the power balance at the row was off by 4e-4 of its scale)
+                rec.add(t_ev, y, yp, modes)
             t = t_ev
             if len(events) > max_events:
                 raise SimulationError(f"more than {max_events} mode changes and contacts in model '{model.name}'; "
