@@ -173,10 +173,10 @@ def test_a_class_that_cannot_be_compiled_stays_on_the_python_path_named(monkeypa
 
 
 def test_check_says_which_path_ida_takes():
-    from regmech.library import excavator_swing, six_speed_car
+    from regmech.library import six_speed_car, slip_control
     assert six_speed_car().check().solver_path.startswith("ida with compiled callbacks")
-    path = excavator_swing().check().solver_path
-    assert path.startswith("ida with Python callbacks") and "BearingFriction 'swing_friction'" in path
+    path = slip_control().check().solver_path
+    assert path.startswith("ida with Python callbacks") and "Position/Speed sources" in path
 
 
 @pytest.mark.parametrize("signal", [

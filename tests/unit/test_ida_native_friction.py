@@ -416,3 +416,28 @@ def test_a_stribeck_clutch_breaks_away_under_the_default_call(solver):
     assert cl.linear_law() is None
     res = m.simulate(1.0, dt_out=1e-3, **solver)
     assert len(res.events) == 1 and res.events[0].t == pytest.approx(0.6, abs=1e-6)
+
+
+def test_bearing_friction_of_constant_torque_runs_native_and_a_speed_table_does_not():
+    """The excavator's swing bearing (MSL BearingFriction with one torque): native, the events and answers of
+    the Python path; a torque table that varies with speed keeps the Python callbacks, named."""
+    from regmech.components import BearingFriction
+    from regmech.library import excavator_swing
+    assert BearingFriction("b", tau_table=[(0.0, 3.0)], peak=1.5).linear_law()[1:] == (1.0, 3.0, 1.5)
+    assert BearingFriction("b", tau_table=[(0.0, 3.0), (10.0, 4.0)]).linear_law() is None
+    m = excavator_swing()
+    native = m.simulate(2.0, dt_out=2e-3, solver="ida", rtol=1e-8, native=True)
+    usual = m.simulate(2.0, dt_out=2e-3, solver="ida", rtol=1e-8, native=False)
+    assert native.stats.extra["native"] is True
+    # the two backlashes meet their contacts at one instant, in either order
+    key = [sorted((round(e.t, 6), e.component, e.new_mode) for e in r.events) for r in (native, usual)]
+    assert key[0] == key[1] and len(key[0]) >= 5
+    # on the output grid's rows (an event within round-off of a grid point adds a row on one path only)
+    grid = np.round(np.arange(0.0, 2.0 + 1e-9, 2e-3), 12)
+    rows = [np.searchsorted(np.round(r.t, 12), grid) for r in (native, usual)]
+    for name in ("turntable.w", "swing_friction.tau", "backlash_1.tau"):
+        np.testing.assert_allclose(native[name][rows[0]], usual[name][rows[1]], rtol=0,
+                                   atol=1e-5 * np.ptp(usual[name]))
+    m.components["swing_friction"].tau_table = [(0.0, 2000.0), (1.0, 2500.0)]
+    note = m.simulate(0.5, dt_out=1e-2, solver="ida", native=True).stats.extra["native"]
+    assert "BearingFriction 'swing_friction'" in note and "speed-dependent" in note

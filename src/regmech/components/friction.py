@@ -497,6 +497,20 @@ class BearingFriction(FrictionDevice):
         slope = (ts[k + 1] - ts[k]) / (ws[k + 1] - ws[k])
         return f * float(ts[k] + slope * (w_abs - ws[k])), f * float(slope)
 
+    #: the methods whose formulas ``linear_law`` restates
+    _LAW = ("kinetic", "normal_force", "capacity_function", "capacities", "relation", "peak_ratio")
+
+    def linear_law(self):
+        """A torque that does not vary with speed (a ``tau_table`` of one torque) in closed form:
+        ``(Constant(1), 1, tau, peak)``, always engaged. None for a speed-dependent table, a thermal state, or
+        a subclass that states another law."""
+        from ..signals import Constant
+        torques = self.tau_table[:, 1]
+        own = all(getattr(type(self), n) is getattr(BearingFriction, n) for n in self._LAW)
+        if self.law_inputs() or np.ptp(torques) != 0.0 or not own:
+            return None
+        return Constant(1.0), 1.0, float(torques[0]), float(self.peak)
+
 
 class LossyGear(FrictionDevice):
     """Gear with mesh efficiency and bearing friction, stuck or rolling (MSL LossyGear).
