@@ -36,7 +36,7 @@ def test_idas_first_rtol_shrinks_faster_than_the_accuracy_on_its_native_path():
     """ida's global error grows faster than its tolerance shrinks (alpha ~ 0.85 over the calibration): on the
     native path, where a tighter run costs little more, its first rtol follows accuracy^(1 + RTOL_SLOPE) below
     the anchor; above it, on the Python path and for the other solvers, accuracy * RTOL_FACTOR."""
-    from regmech.library import coupled_clutches, one_way_clutch
+    from regmech.library import coupled_clutches, slip_control
     from regmech.solvers.accuracy import RTOL_ANCHOR, RTOL_FACTOR, first_rtol, native_served
     f = RTOL_FACTOR["ida"]
     assert first_rtol("ida", RTOL_ANCHOR, native=True) == pytest.approx(f * RTOL_ANCHOR)
@@ -50,7 +50,7 @@ def test_idas_first_rtol_shrinks_faster_than_the_accuracy_on_its_native_path():
         pytest.skip(f"no native path here: {libraries()}")
     cc = coupled_clutches().compile()
     assert native_served("ida", cc, {"native": True}) and not native_served("ida", cc, {})
-    assert not native_served("ida", one_way_clutch().compile(), {"native": True})   # one-way clutch: Python path
+    assert not native_served("ida", slip_control().compile(), {"native": True})   # a commanded clutch: Python path
 
 
 def test_coupled_clutches_at_1e_6_needs_one_pair():

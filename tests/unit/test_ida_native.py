@@ -9,9 +9,9 @@ import pytest
 
 import regmech as rm
 from regmech.bench.hard_models import benchmark_chain as chain
-from regmech.components import Damper, Fixed, IdealGear, Inertia, Speed, SpringDamper, Torque
+from regmech.components import Damper, Fixed, IdealGear, Inertia, Position, Speed, SpringDamper, Torque
 from regmech.library import coupled_clutches, first
-from regmech.signals import Constant, Function, Ramp, Sine, Step
+from regmech.signals import Constant, Function, Ramp, Sine, Step, Table
 
 pytest.importorskip("numba")
 from regmech.solvers import ida_native  # noqa: E402
@@ -112,12 +112,29 @@ def test_models_the_native_path_cannot_serve_run_the_usual_path_and_say_why(mode
                                   plain["J1.w" if "J1.w" in plain.names else "J0.w"])
 
 
-def test_position_and_speed_sources_are_not_native_but_time_limits_are():
+@pytest.mark.parametrize("source", [
+    lambda: Speed("src", w_ref=Sine(amplitude=1.0, freq_hz=1.0, start_time=0.1)),
+    lambda: Speed("src", w_ref=Ramp(height=2.0, duration=0.3, start_time=0.2)),
+    lambda: Speed("src", w_ref=Table([(0.0, 0.0), (0.2, 1.0), (0.5, -0.5), (0.8, 0.0)])),
+    lambda: Position("src", phi_ref=Sine(amplitude=0.2, freq_hz=2.0, phase=np.pi / 2, offset=-0.2)),
+], ids=["speed_sine", "speed_ramp", "speed_table", "position_sine"])
+def test_position_and_speed_sources_run_native_with_the_python_path_s_answer(source):
+    """A prescribed motion's reference and its derivatives (the index reduction's rows) evaluated by the
+    compiled residual: the answer of the Python path, and the source's torque too."""
     m = chain(3)
-    m.add(Speed("spd", w_ref=Sine(amplitude=1.0, freq_hz=1.0)))
+    src = m.add(source())
+    m.connect(src.flange, m.components["J2"].flange_b)
+    a, b = _compare(m, 1.0, 1e-9)
+    for name in ("J0.w", "J2.w", "src.tau"):
+        np.testing.assert_allclose(a[name], b[name], rtol=0, atol=1e-6 * max(np.ptp(b[name]), 1e-3))
+
+
+def test_a_reference_the_kernels_cannot_evaluate_is_named_and_time_limits_are_read():
+    m = chain(3)
+    m.add(Speed("spd", w_ref=Function(lambda t: np.sin(t))))
     m.connect(m.components["spd"].flange, m.components["J2"].flange_b)
     res = m.simulate(0.2, dt_out=0.05, solver="ida", native=True)
-    assert "Position/Speed" in res.stats.extra["native"]
+    assert "Position/Speed source has a Function reference" in res.stats.extra["native"]
     # the residual kernels read the clock (``_native_kernels._past_deadline``)
     res = chain(3).simulate(0.2, dt_out=0.05, solver="ida", native=True, timeout_s=60)
     assert res.stats.extra["native"] is True

@@ -24,6 +24,8 @@ from numba import njit
 
 #: signal kinds
 CONSTANT, SINE, STEP, RAMP, PULSE, TABLE = 0, 1, 2, 3, 4, 5
+#: ``kind + DERIVED * order``: that signal's derivative of order 1 or 2 (``signal_slope``)
+DERIVED = 8
 #: parameters per signal
 N_PAR = 5
 #: signal classes every compiled kernel evaluates (``signal_value``)
@@ -88,9 +90,48 @@ def table_value(arr, base, n, t, left):
 
 
 @njit(cache=True, inline="always")
+def signal_slope(kind, arr, off, t, left, order):
+    """``Signal.derivative(t, order, left)`` of the signal of ``signal_at`` (order 1 or 2; the library's
+    formulas): zero for Constant, Step and Pulse, the slope of a rising Ramp or of a Table's piece, the
+    Sine's derivative once it is on."""
+    if kind == SINE:
+        p = arr[off:off + N_PAR]
+        on = t > p[4] if left else t >= p[4]
+        if not on:
+            return 0.0
+        w = 2.0 * math.pi * p[2]
+        return p[1] * w ** order * math.sin(w * (t - p[4]) + p[3] + order * math.pi / 2.0)
+    if order != 1:
+        return 0.0
+    if kind == RAMP:
+        p = arr[off:off + N_PAR]
+        t0, t1 = p[3], p[3] + p[2]
+        rising = (t0 < t <= t1) if left else (t0 <= t < t1)
+        return p[1] / p[2] if (p[2] > 0.0 and rising) else 0.0
+    if kind == TABLE:
+        base, n = int(arr[off]), int(arr[off + 1])
+        lo, hi = 0, n
+        while lo < hi:
+            mid = (lo + hi) // 2
+            tm = arr[base + mid]
+            if tm < t or (not left and tm == t):
+                lo = mid + 1
+            else:
+                hi = mid
+        k = lo - 1
+        if k < 0 or k >= n - 1 or arr[base + k + 1] == arr[base + k]:
+            return 0.0
+        return (arr[base + n + k + 1] - arr[base + n + k]) / (arr[base + k + 1] - arr[base + k])
+    return 0.0
+
+
+@njit(cache=True, inline="always")
 def signal_at(kind, arr, off, t, left):
     """The value of the signal whose parameters sit at ``arr[off:off + N_PAR]``; a ``TABLE``'s are the index of
-    its points in ``arr`` and their count (``pooled_entries``)."""
+    its points in ``arr`` and their count (``pooled_entries``). A kind ``k + DERIVED * order`` is the signal of
+    kind ``k``'s derivative of that order (``signal_slope``: a Position or Speed source's reference)."""
+    if kind >= DERIVED:
+        return signal_slope(kind % DERIVED, arr, off, t, left, kind // DERIVED)
     if kind == TABLE:
         return table_value(arr, int(arr[off]), int(arr[off + 1]), t, left)
     return signal_value(kind, arr[off:off + N_PAR], t, left)
@@ -151,11 +192,30 @@ def _signal_table(plan, pooled):
                             f"(the compiled kernels evaluate {', '.join(names)})")
                 entries.append(entry)
                 slots.append(start + j * g.n + i)
+    if pooled:
+        # Position and Speed sources: the reference and its derivatives at their slots (``EvaluationPlan``)
+        for refs, orders in ((plan.pos_refs, 3), (plan.spd_refs, 2)):
+            for slot, s in refs:
+                for order in range(orders):
+                    entry = derived_entry(s, order)
+                    if entry is None:
+                        return (f"a Position/Speed source has a {type(s).__name__} reference (the compiled "
+                                f"kernels evaluate {', '.join(SUPPORTED_POOLED)})")
+                    entries.append(entry)
+                    slots.append(slot + order)
     kinds, pars, pool = pooled_entries(entries, 0)
     table = (kinds, np.array(slots, np.int64), pars) + ((pool,) if pooled else ())
     for a in table:
         a.flags.writeable = False       # shared by the native IDA layouts and the ODE form
     return table
+
+
+def derived_entry(s, order):
+    """``signal_entry(s, pooled=True)`` of the derivative of ``s`` of ``order`` (0: the signal itself), or None."""
+    entry = signal_entry(s, pooled=True)
+    if entry is None or order == 0:
+        return entry
+    return (entry[0] + DERIVED * order,) + tuple(entry[1:])
 
 
 def pooled_entries(entries, base):
@@ -166,7 +226,7 @@ def pooled_entries(entries, base):
     pars = np.concatenate([e[1] for e in entries]) if entries else np.zeros(0)
     pool, pos = [], base + len(pars)
     for i, e in enumerate(entries):
-        if e[0] == TABLE:
+        if e[0] % DERIVED == TABLE:
             pars[N_PAR * i] = pos
             pool.append(e[2])
             pos += len(e[2])
@@ -176,5 +236,5 @@ def pooled_entries(entries, base):
 def source_hash() -> str:
     """The first 16 hex digits of the SHA-256 of the source of the compiled signal formulas (module
     docstring)."""
-    text = "".join(inspect.getsource(f.py_func) for f in (signal_value, table_value, signal_at))
+    text = "".join(inspect.getsource(f.py_func) for f in (signal_value, table_value, signal_slope, signal_at))
     return hashlib.sha256(text.encode()).hexdigest()[:16]

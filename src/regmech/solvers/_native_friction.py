@@ -66,8 +66,8 @@ def _friction_laws(fr):
 def _place_pool(pars, kinds, shift):
     """Move each table's first parameter (the index of its points, ``_native_signals.pooled_entries``) by
     ``shift``: its points then sit where the array that holds the parameters placed its pool."""
-    from ..compile._native_signals import N_PAR, TABLE
-    for i in np.nonzero(np.asarray(kinds) == TABLE)[0]:
+    from ..compile._native_signals import DERIVED, N_PAR, TABLE
+    for i in np.nonzero(np.asarray(kinds) % DERIVED == TABLE)[0]:
         pars[N_PAR * i] += shift
 
 

@@ -231,8 +231,6 @@ def _eligible(c, linsolver):
                         f"between them (evaluated in Python)")
     if plan.offset_slots:
         return f"offsets not linear in their signals ({', '.join(g.tpl.cls.__name__ for g, _ in plan.offset_slots)})"
-    if plan.pos_refs or plan.spd_refs:
-        return "Position/Speed sources (their references)"
     if linsolver not in ("dense", "band"):
         return f"linear solver '{linsolver}' (the native path has dense and band)"
     lib = libraries()            # numba first: the signal table needs the kernels' constants
