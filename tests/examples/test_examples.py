@@ -2,6 +2,7 @@
 writes its figure: a PNG named after the script, non-empty, that matplotlib reads back as an image."""
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -35,3 +36,8 @@ def test_example_runs_and_writes_its_figure(script, tmp_path):
     assert image.shape[0] > 200 and image.shape[1] > 200
     assert image[..., :3].std() > 0.01                 # not a blank canvas
     assert not (tmp_path / "out").exists()             # the folder given was used, not the default
+    gallery = os.environ.get("REGMECH_GALLERY_FIGURES")
+    if gallery:                 # CI: the documentation build then finds the figures made (docs/gallery.py)
+        Path(gallery).mkdir(parents=True, exist_ok=True)
+        for png in out.glob("*.png"):
+            shutil.copy(png, Path(gallery) / png.name)
