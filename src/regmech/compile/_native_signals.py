@@ -66,10 +66,10 @@ def signal_value(kind, p, t, left):
 
 
 @njit(cache=True, inline="always")
-def table_value(arr, base, n, t, left):
-    """``Table.value``: the ``n`` times at ``arr[base:base + n]``, the values after them; piece k holds
-    ``[t_k, t_{k+1})`` (left limits ``(t_k, t_{k+1}]``), constant outside, a repeated time a jump."""
-    lo, hi = 0, n                # k + 1 = the number of times < t (left) or <= t
+def table_piece(arr, base, n, t, left):
+    """The piece ``k`` of a table's ``n`` times at ``arr[base:base + n]`` that holds ``t``: ``k + 1`` times are
+    ``< t`` (left limits) or ``<= t``; -1 before the first, ``n - 1`` after the last."""
+    lo, hi = 0, n
     while lo < hi:
         mid = (lo + hi) // 2
         tm = arr[base + mid]
@@ -77,7 +77,14 @@ def table_value(arr, base, n, t, left):
             lo = mid + 1
         else:
             hi = mid
-    k = lo - 1
+    return lo - 1
+
+
+@njit(cache=True, inline="always")
+def table_value(arr, base, n, t, left):
+    """``Table.value``: the ``n`` times at ``arr[base:base + n]``, the values after them; piece k holds
+    ``[t_k, t_{k+1})`` (left limits ``(t_k, t_{k+1}]``), constant outside, a repeated time a jump."""
+    k = table_piece(arr, base, n, t, left)
     v = base + n
     if k < 0:
         return arr[v]
@@ -110,15 +117,7 @@ def signal_slope(kind, arr, off, t, left, order):
         return p[1] / p[2] if (p[2] > 0.0 and rising) else 0.0
     if kind == TABLE:
         base, n = int(arr[off]), int(arr[off + 1])
-        lo, hi = 0, n
-        while lo < hi:
-            mid = (lo + hi) // 2
-            tm = arr[base + mid]
-            if tm < t or (not left and tm == t):
-                lo = mid + 1
-            else:
-                hi = mid
-        k = lo - 1
+        k = table_piece(arr, base, n, t, left)
         if k < 0 or k >= n - 1 or arr[base + k + 1] == arr[base + k]:
             return 0.0
         return (arr[base + n + k + 1] - arr[base + n + k]) / (arr[base + k + 1] - arr[base + k])
@@ -236,5 +235,5 @@ def pooled_entries(entries, base):
 def source_hash() -> str:
     """The first 16 hex digits of the SHA-256 of the source of the compiled signal formulas (module
     docstring)."""
-    text = "".join(inspect.getsource(f.py_func) for f in (signal_value, table_value, signal_slope, signal_at))
+    text = "".join(inspect.getsource(f.py_func) for f in (signal_value, table_piece, table_value, signal_slope, signal_at))
     return hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -34,7 +34,7 @@ from ._native_signals import N_PAR, signal_value
 NONE, DIA, CSR = 0, 1, 2
 #: ``_native_signals.source_hash()`` of the signal formulas compiled in here (a test checks it: a change there must
 #: edit this file, or numba's cache of this file's kernels keeps the old formulas)
-SIGNALS_SOURCE = "738cafcbb0df999f"
+SIGNALS_SOURCE = "4c634e02e3d2fb5c"
 
 
 def pack(M):

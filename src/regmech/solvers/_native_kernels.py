@@ -36,7 +36,7 @@ from ..compile._native_signals import CONSTANT, N_PAR, RAMP, SINE, STEP      # n
 from ..compile._native_signals import signal_at as _signal_at                 # noqa: E402
 #: ``_native_signals.source_hash()`` of the signal formulas compiled in here (a test checks it: a change there must
 #: edit this file, or numba's cache of this file's kernels keeps the old formulas)
-SIGNALS_SOURCE = "738cafcbb0df999f"
+SIGNALS_SOURCE = "4c634e02e3d2fb5c"
 # a friction device's first event function in the segment's modes (``hybrid.events``)
 EV_SLIDING, EV_STUCK, EV_CONSTANT, EV_STUCK_ONE_WAY, EV_FREE_ONE_WAY = 0, 1, 2, 3, 4
 # the mode codes of ``regmech.modes`` (STUCK 0, FORWARD 1, BACKWARD -1; FREE and HELD carry no torque)
